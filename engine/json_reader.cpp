@@ -1,0 +1,244 @@
+#include "engine/json_reader.hpp"
+
+#include <cmath>
+#include <fstream>
+#include <sstream>
+
+namespace crowdmpm {
+
+std::string format_number(double v) {
+  std::ostringstream s;
+  s.precision(10);
+  s << v;
+  return s.str();
+}
+
+static std::string type_name(const json& v) {
+  switch (v.type()) {
+    case json::value_t::null: return "null";
+    case json::value_t::boolean: return "a boolean";
+    case json::value_t::string: return "a string";
+    case json::value_t::array: return "an array";
+    case json::value_t::object: return "an object";
+    case json::value_t::number_integer:
+    case json::value_t::number_unsigned:
+    case json::value_t::number_float: return "a number";
+    default: return "an unsupported value";
+  }
+}
+
+std::string read_text_file(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw Error(path + ": cannot open file for reading");
+  std::ostringstream s;
+  s << in.rdbuf();
+  if (in.bad()) throw Error(path + ": read error");
+  return s.str();
+}
+
+json parse_json_text(const std::string& text, const std::string& source_name) {
+  try {
+    return json::parse(text);
+  } catch (const json::parse_error& e) {
+    // nlohmann reports a byte offset; translate it to line and column for a person.
+    size_t offset = std::min<size_t>(e.byte, text.size());
+    size_t line = 1, col = 1;
+    for (size_t i = 0; i + 1 < offset; ++i) {
+      if (text[i] == '\n') { ++line; col = 1; } else { ++col; }
+    }
+    std::string msg = e.what();
+    auto pos = msg.find("parse error");
+    if (pos != std::string::npos) msg = msg.substr(pos);
+    throw Error(source_name + ":" + std::to_string(line) + ":" + std::to_string(col) +
+                ": invalid JSON (" + msg + ")");
+  }
+}
+
+json load_json_file(const std::string& path) { return parse_json_text(read_text_file(path), path); }
+
+std::string JsonReader::child_path(const std::string& key) const {
+  return path_.empty() ? key : path_ + "." + key;
+}
+std::string JsonReader::child_path(size_t index) const {
+  return path_ + "[" + std::to_string(index) + "]";
+}
+
+void JsonReader::fail(const std::string& reason) const {
+  throw Error((path_.empty() ? std::string("(top level)") : path_) + ": " + reason);
+}
+void JsonReader::fail_at(const std::string& key, const std::string& reason) const {
+  throw Error(child_path(key) + ": " + reason);
+}
+
+void JsonReader::require_object() const {
+  if (!value_->is_object()) fail("must be an object, got " + type_name(*value_));
+}
+void JsonReader::require_array() const {
+  if (!value_->is_array()) fail("must be an array, got " + type_name(*value_));
+}
+
+bool JsonReader::has(const std::string& key) const {
+  require_object();
+  return value_->contains(key);
+}
+
+JsonReader JsonReader::at(const std::string& key) const {
+  require_object();
+  auto it = value_->find(key);
+  if (it == value_->end()) fail_at(key, "is required but missing");
+  return JsonReader(*it, child_path(key));
+}
+
+std::optional<JsonReader> JsonReader::get(const std::string& key) const {
+  require_object();
+  auto it = value_->find(key);
+  if (it == value_->end() || it->is_null()) return std::nullopt;
+  return JsonReader(*it, child_path(key));
+}
+
+JsonReader JsonReader::item(size_t index) const {
+  require_array();
+  return JsonReader((*value_)[index], child_path(index));
+}
+
+size_t JsonReader::size() const {
+  require_array();
+  return value_->size();
+}
+
+void JsonReader::allow_only(const std::vector<std::string>& keys) const {
+  require_object();
+  for (auto it = value_->begin(); it != value_->end(); ++it) {
+    bool known = false;
+    for (const auto& k : keys) known = known || k == it.key();
+    if (!known) {
+      std::string list;
+      for (const auto& k : keys) list += (list.empty() ? "" : ", ") + k;
+      fail_at(it.key(), "unknown key (allowed here: " + list + ")");
+    }
+  }
+}
+
+double JsonReader::as_number() const {
+  if (!value_->is_number()) fail("must be a number, got " + type_name(*value_));
+  double v = value_->get<double>();
+  if (!std::isfinite(v)) fail("must be a finite number");
+  return v;
+}
+
+std::string JsonReader::as_string() const {
+  if (!value_->is_string()) fail("must be a string, got " + type_name(*value_));
+  return value_->get<std::string>();
+}
+
+bool JsonReader::as_bool() const {
+  if (!value_->is_boolean()) fail("must be true or false, got " + type_name(*value_));
+  return value_->get<bool>();
+}
+
+Vec2 JsonReader::as_vec2() const {
+  if (!value_->is_array() || value_->size() != 2)
+    fail("must be a point [x, y] (two numbers, metres), got " +
+         (value_->is_array() ? "an array of " + std::to_string(value_->size()) : type_name(*value_)));
+  return Vec2(item(0).as_number(), item(1).as_number());
+}
+
+std::vector<Vec2> JsonReader::as_points(size_t min_count) const {
+  require_array();
+  if (value_->size() < min_count)
+    fail("needs at least " + std::to_string(min_count) + " points, got " +
+         std::to_string(value_->size()));
+  std::vector<Vec2> pts;
+  for (size_t i = 0; i < value_->size(); ++i) pts.push_back(item(i).as_vec2());
+  return pts;
+}
+
+std::vector<double> JsonReader::as_numbers() const {
+  require_array();
+  std::vector<double> out;
+  for (size_t i = 0; i < value_->size(); ++i) out.push_back(item(i).as_number());
+  return out;
+}
+
+double JsonReader::number(const std::string& key, std::optional<double> fallback) const {
+  auto r = get(key);
+  if (!r) {
+    if (!fallback) fail_at(key, "is required but missing");
+    return *fallback;
+  }
+  return r->as_number();
+}
+
+double JsonReader::positive(const std::string& key, std::optional<double> fallback) const {
+  double v = number(key, fallback);
+  if (!(v > 0)) fail_at(key, "must be > 0, got " + format_number(v));
+  return v;
+}
+
+double JsonReader::non_negative(const std::string& key, std::optional<double> fallback) const {
+  double v = number(key, fallback);
+  if (!(v >= 0)) fail_at(key, "must be >= 0, got " + format_number(v));
+  return v;
+}
+
+double JsonReader::in_range(const std::string& key, double lo, double hi,
+                            std::optional<double> fallback) const {
+  double v = number(key, fallback);
+  if (!(v >= lo && v <= hi))
+    fail_at(key, "must be in [" + format_number(lo) + ", " + format_number(hi) + "], got " +
+                     format_number(v));
+  return v;
+}
+
+int JsonReader::integer(const std::string& key, long lo, long hi, std::optional<long> fallback) const {
+  auto r = get(key);
+  if (!r) {
+    if (!fallback) fail_at(key, "is required but missing");
+    return static_cast<int>(*fallback);
+  }
+  double v = r->as_number();
+  if (v != std::floor(v)) r->fail("must be a whole number, got " + format_number(v));
+  if (v < static_cast<double>(lo) || v > static_cast<double>(hi))
+    r->fail("must be in [" + std::to_string(lo) + ", " + std::to_string(hi) + "], got " +
+            format_number(v));
+  return static_cast<int>(v);
+}
+
+std::string JsonReader::string(const std::string& key, std::optional<std::string> fallback) const {
+  auto r = get(key);
+  if (!r) {
+    if (!fallback) fail_at(key, "is required but missing");
+    return *fallback;
+  }
+  return r->as_string();
+}
+
+std::string JsonReader::one_of(const std::string& key, const std::vector<std::string>& options,
+                               std::optional<std::string> fallback) const {
+  std::string v = string(key, fallback);
+  for (const auto& o : options)
+    if (o == v) return v;
+  std::string list;
+  for (const auto& o : options) list += (list.empty() ? "\"" : ", \"") + o + "\"";
+  fail_at(key, "must be one of " + list + ", got \"" + v + "\"");
+}
+
+bool JsonReader::boolean(const std::string& key, std::optional<bool> fallback) const {
+  auto r = get(key);
+  if (!r) {
+    if (!fallback) fail_at(key, "is required but missing");
+    return *fallback;
+  }
+  return r->as_bool();
+}
+
+Vec2 JsonReader::vec2(const std::string& key, std::optional<Vec2> fallback) const {
+  auto r = get(key);
+  if (!r) {
+    if (!fallback) fail_at(key, "is required but missing");
+    return *fallback;
+  }
+  return r->as_vec2();
+}
+
+}  // namespace crowdmpm

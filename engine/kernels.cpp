@@ -1,0 +1,331 @@
+#include "engine/kernels.hpp"
+
+#include "engine/fields.hpp"
+
+#include <Eigen/SVD>
+#include <algorithm>
+#include <cmath>
+
+namespace crowdmpm {
+
+// ---------------------------------------------------------------------------------------------
+// Grids
+
+void Grid::init(const Geometry& geo, double cell) {
+  dx = cell;
+  // Two cells of padding so every particle inside the domain has its full 3x3 stencil.
+  origin = geo.lo - Vec2(2 * dx, 2 * dx);
+  nx = static_cast<int>(std::ceil((geo.hi.x() - geo.lo.x()) / dx)) + 5;
+  ny = static_cast<int>(std::ceil((geo.hi.y() - geo.lo.y()) / dx)) + 5;
+  mass.assign(nodes(), 0);
+  velocity.assign(nodes(), Vec2::Zero());
+  solid.assign(nodes(), 0);
+  normal.assign(nodes(), Vec2::Zero());
+  bin_start.assign(nodes() + 1, 0);
+  for (int j = 0; j < ny; ++j)
+    for (int i = 0; i < nx; ++i) {
+      Vec2 p = origin + dx * Vec2(i, j);
+      if (geo.sdf(p) < 0) {
+        solid[node(i, j)] = 1;
+        normal[node(i, j)] = geo.normal(p);
+      }
+    }
+}
+
+void NeighbourGrid::init(const Geometry& geo, double range) {
+  h = std::max(range, 1e-3);
+  origin = geo.lo - Vec2(h, h);
+  nx = static_cast<int>(std::ceil((geo.hi.x() - geo.lo.x()) / h)) + 3;
+  ny = static_cast<int>(std::ceil((geo.hi.y() - geo.lo.y()) / h)) + 3;
+  start.assign(static_cast<size_t>(nx) * ny + 1, 0);
+}
+
+// Counting sort of items by key; order lists items of key k at [start[k], start[k+1]), each
+// run in increasing item index.
+static void counting_sort(const std::vector<int>& key, size_t n, std::vector<int>& start,
+                          std::vector<int>& order, std::vector<int>& cursor) {
+  std::fill(start.begin(), start.end(), 0);
+  for (size_t p = 0; p < n; ++p) ++start[key[p] + 1];
+  for (size_t k = 1; k < start.size(); ++k) start[k] += start[k - 1];
+  order.resize(n);
+  cursor.assign(start.begin(), start.end() - 1);
+  for (size_t p = 0; p < n; ++p) order[cursor[key[p]]++] = static_cast<int>(p);
+}
+
+void NeighbourGrid::build(const World& w) {
+  const size_t n = w.size();
+  cell.resize(n);
+  for (size_t p = 0; p < n; ++p) {
+    int i = std::clamp(static_cast<int>(std::floor((w.x[p].x() - origin.x()) / h)), 0, nx - 1);
+    int j = std::clamp(static_cast<int>(std::floor((w.x[p].y() - origin.y()) / h)), 0, ny - 1);
+    cell[p] = j * nx + i;
+  }
+  counting_sort(cell, n, start, order, cursor);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Material
+
+double material_pressure(const MaterialParams& p, double J) {
+  double P = p.E * (std::pow(J, -p.gamma) - 1);
+  return J < 1 ? P : p.tension_scale * P;
+}
+
+Mat2 kirchhoff_stress(const Model& m, const Mat2& F, double J) {
+  if (m.material != MaterialKind::Elastic) return -J * material_pressure(m.params, J) * Mat2::Identity();
+  // Fixed-corotated elasticity: tau = 2 mu (F - R) F^T + lambda (J - 1) J I.
+  const double E = m.params.E, nu = m.params.poisson_ratio;
+  const double mu = E / (2 * (1 + nu)), lambda = E * nu / ((1 + nu) * (1 - 2 * nu));
+  Eigen::JacobiSVD<Mat2> svd(F, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  Mat2 U = svd.matrixU(), V = svd.matrixV();
+  if (U.determinant() < 0) U.col(1) *= -1;
+  if (V.determinant() < 0) V.col(1) *= -1;
+  Mat2 R = U * V.transpose();
+  double Jf = F.determinant();
+  return 2 * mu * (F - R) * F.transpose() + lambda * (Jf - 1) * Jf * Mat2::Identity();
+}
+
+// ---------------------------------------------------------------------------------------------
+// 1. Drive: a_p = (v0 e_p - v_p) / tau, plus body forces.
+
+static Vec2 desired_direction(const StepInputs& in, const Behaviour& b, const Vec2& x) {
+  switch (b.kind) {
+    case Behaviour::Kind::None: return Vec2::Zero();
+    case Behaviour::Kind::Goal:
+      if (b.target && b.target->contains(x)) return Vec2::Zero();
+      return in.navs[b.nav].direction(x);
+    case Behaviour::Kind::Orbit: {
+      Vec2 r = x - b.point;
+      double n = r.norm();
+      if (n < 1e-9) return Vec2::Zero();
+      Vec2 radial = r / n;
+      Vec2 e = b.sign * Vec2(-radial.y(), radial.x()) - b.inward * radial;
+      return e.normalized();
+    }
+    case Behaviour::Kind::Attract: {
+      Vec2 d = b.point - x;
+      double n = d.norm();
+      return n > b.arrive_radius ? Vec2(d / n) : Vec2::Zero();
+    }
+  }
+  return Vec2::Zero();
+}
+
+void kernel_drive(const StepInputs& in, World& w, ThreadPool& pool) {
+  const MaterialParams& P = in.model.params;
+  pool.parallel_for(w.size(), [&](size_t b, size_t e) {
+    for (size_t p = b; p < e; ++p) {
+      const Behaviour& beh = in.behaviours[w.behaviour[p]];
+      Vec2 a = Vec2::Zero();
+      Vec2 dir = desired_direction(in, beh, w.x[p]);
+      if (beh.kind != Behaviour::Kind::None) a = (P.v0_scale * w.v0[p] * dir - w.v[p]) / P.tau;
+      for (const auto& f : in.forces) {
+        if (!f.applies(w.group[p])) continue;
+        if (f.kind == BodyForce::Kind::Uniform) {
+          a += f.acceleration;
+          continue;
+        }
+        Vec2 r = w.x[p] - f.center;
+        double d = r.norm();
+        if (d < 1e-9 || d > f.range) continue;
+        Vec2 radial = r / d;
+        a += f.kind == BodyForce::Kind::Radial ? Vec2(-f.strength * radial)
+                                               : Vec2(f.strength * Vec2(-radial.y(), radial.x()));
+      }
+      w.accel[p] = a;
+      if (dir.squaredNorm() > 0) w.heading[p] = dir;
+      else if (w.v[p].squaredNorm() > 1e-8) w.heading[p] = w.v[p].normalized();
+    }
+  });
+}
+
+// ---------------------------------------------------------------------------------------------
+// 2. Pair traction: f_p = sum_q K_pq phi(d) (x_p - x_q)/d for d < theta2 = r_p + r_q + c_p.
+
+void kernel_traction(const StepInputs& in, const NeighbourGrid& nb, World& w, ThreadPool& pool) {
+  const TractionNet& net = in.model.traction;
+  const bool active = in.model.has_traction();
+  const double eps = in.model.params.contact_epsilon;
+  const double area0 = 1.0 / in.model.params.rest_density;
+  pool.parallel_for(w.size(), [&](size_t b, size_t e) {
+    double inputs[TractionNet::kInputs];
+    for (size_t p = b; p < e; ++p) {
+      Vec2 force = Vec2::Zero();
+      double virial = 0;
+      if (active) {
+        const Vec2 xp = w.x[p], vp = w.v[p], hp = w.heading[p];
+        const double cp = w.comfort[p];
+        const int c = nb.cell[p], ci = c % nb.nx, cj = c / nb.nx;
+        for (int dj = -1; dj <= 1; ++dj)
+          for (int di = -1; di <= 1; ++di) {
+            int i = ci + di, j = cj + dj;
+            if (i < 0 || j < 0 || i >= nb.nx || j >= nb.ny) continue;
+            int k = j * nb.nx + i;
+            for (int s = nb.start[k]; s < nb.start[k + 1]; ++s) {
+              size_t q = static_cast<size_t>(nb.order[s]);
+              if (q == p) continue;
+              Vec2 r = w.x[q] - xp;
+              double d = r.norm();
+              double theta1 = w.radius[p] + w.radius[q];
+              if (d >= theta1 + cp || d < 1e-12) continue;
+              Vec2 n = r / d, np(-n.y(), n.x());
+              Vec2 dv = w.v[q] - vp;
+              inputs[0] = cp;
+              inputs[1] = d;
+              inputs[2] = r.dot(hp);
+              inputs[3] = r.dot(Vec2(-hp.y(), hp.x()));
+              inputs[4] = -dv.dot(n);
+              inputs[5] = dv.dot(np);
+              double K = net.eval(inputs);
+              double phi = -std::log((std::max(d, theta1 + eps) - theta1) / cp);
+              force -= K * phi * n;
+              virial += K * phi * d;
+            }
+          }
+      }
+      w.pair_force[p] = force;
+      w.pair_virial[p] = virial;
+      Mat2 tau = kirchhoff_stress(in.model, w.F[p], w.J[p]);
+      double J = std::max(w.J[p], 1e-6);
+      w.pressure[p] = -0.5 * tau.trace() / J + virial / (4 * area0 * J);
+    }
+  });
+}
+
+// ---------------------------------------------------------------------------------------------
+// 3. P2G, as a gather: (mv)_i = sum_p w_ip [m v_p + (m C_p - dt V0 (4/dx^2) tau_p)(x_i - x_p)
+//                                             + dt (m a_p + f_p)]
+
+static inline Stencil stencil(const Grid& g, const Vec2& x) { return make_stencil(g.origin, g.dx, g.nx, g.ny, x); }
+
+void kernel_p2g(const StepInputs& in, const World& w, Grid& g, ThreadPool& pool) {
+  const size_t n = w.size();
+  const double m = in.model.params.mass, vol0 = 1.0 / in.model.params.rest_density;
+  const double dt = in.dt, inv_dx2 = 1.0 / (g.dx * g.dx);
+  g.base.resize(n);
+  g.momentum.resize(n);
+  g.affine.resize(n);
+  pool.parallel_for(n, [&](size_t b, size_t e) {
+    for (size_t p = b; p < e; ++p) {
+      Stencil s = stencil(g, w.x[p]);
+      g.base[p] = g.node(s.bx, s.by);
+      Mat2 tau = kirchhoff_stress(in.model, w.F[p], w.J[p]);
+      g.affine[p] = m * w.C[p] - dt * vol0 * 4 * inv_dx2 * tau;
+      g.momentum[p] = m * w.v[p] + dt * (m * w.accel[p] + w.pair_force[p]);
+    }
+  });
+  counting_sort(g.base, n, g.bin_start, g.order, g.cursor);
+  pool.parallel_for(static_cast<size_t>(g.ny), [&](size_t jb, size_t je) {
+    for (size_t j = jb; j < je; ++j)
+      for (int i = 0; i < g.nx; ++i) {
+        const int k = g.node(i, static_cast<int>(j));
+        double mass = 0;
+        Vec2 mv = Vec2::Zero();
+        for (int b = 0; b < 3; ++b)
+          for (int a = 0; a < 3; ++a) {
+            int bi = i - a, bj = static_cast<int>(j) - b;
+            if (bi < 0 || bj < 0) continue;
+            int bin = g.node(bi, bj);
+            for (int s = g.bin_start[bin]; s < g.bin_start[bin + 1]; ++s) {
+              const size_t p = static_cast<size_t>(g.order[s]);
+              Stencil st = stencil(g, w.x[p]);
+              double weight = st.wx[a] * st.wy[b];
+              Vec2 dpos = g.dx * Vec2(a - st.fx, b - st.fy);
+              mass += weight * m;
+              mv += weight * (g.momentum[p] + g.affine[p] * dpos);
+            }
+          }
+        g.mass[k] = mass;
+        g.velocity[k] = mv;
+      }
+  });
+}
+
+// ---------------------------------------------------------------------------------------------
+// 5. Grid update: v_i = (mv)_i / m_i; no flow into solids (slip, optional friction).
+
+void kernel_grid_update(const StepInputs& in, Grid& g, ThreadPool& pool) {
+  const double friction = in.model.params.wall_friction;
+  pool.parallel_for(g.nodes(), [&](size_t b, size_t e) {
+    for (size_t k = b; k < e; ++k) {
+      if (g.mass[k] <= 0) {
+        g.velocity[k] = Vec2::Zero();
+        continue;
+      }
+      Vec2 v = g.velocity[k] / g.mass[k];
+      if (g.solid[k]) {
+        const Vec2& nrm = g.normal[k];
+        double vn = v.dot(nrm);
+        if (vn < 0) {
+          v -= vn * nrm;
+          v *= (1 - friction);
+        }
+      }
+      g.velocity[k] = v;
+    }
+  });
+}
+
+// ---------------------------------------------------------------------------------------------
+// 6. G2P: v_p, C_p = 4/dx^2 sum w v_i (x_i - x_p)^T; J *= 1 + dt tr C; F = (I + dt C) F; x += dt v.
+
+void kernel_g2p(const StepInputs& in, const Grid& g, World& w, ThreadPool& pool) {
+  const double dt = in.dt, inv_dx2 = 1.0 / (g.dx * g.dx);
+  const MaterialParams& P = in.model.params;
+  const bool elastic = in.model.material == MaterialKind::Elastic;
+  // With no tension (s_t = 0) nothing resists expansion: J is capped at 1 (DESIGN.md section 2).
+  const double j_max = P.tension_scale > 0 || elastic ? 4.0 : 1.0;
+  pool.parallel_for(w.size(), [&](size_t b, size_t e) {
+    for (size_t p = b; p < e; ++p) {
+      Stencil s = stencil(g, w.x[p]);
+      Vec2 v = Vec2::Zero();
+      Mat2 C = Mat2::Zero();
+      for (int bj = 0; bj < 3; ++bj)
+        for (int ai = 0; ai < 3; ++ai) {
+          double weight = s.wx[ai] * s.wy[bj];
+          const Vec2& vi = g.velocity[g.node(s.bx + ai, s.by + bj)];
+          Vec2 dpos = g.dx * Vec2(ai - s.fx, bj - s.fy);
+          v += weight * vi;
+          C += 4 * inv_dx2 * weight * vi * dpos.transpose();
+        }
+      double speed = v.norm();
+      if (speed > P.max_speed) v *= P.max_speed / speed;
+      w.v[p] = v;
+      w.C[p] = C;
+      if (elastic) {
+        w.F[p] = (Mat2::Identity() + dt * C) * w.F[p];
+        w.J[p] = w.F[p].determinant();
+      } else {
+        w.J[p] = std::clamp(w.J[p] * (1 + dt * C.trace()), 0.2, j_max);
+      }
+      w.x[p] += dt * v;
+    }
+  });
+}
+
+// ---------------------------------------------------------------------------------------------
+// Projection out of solids: centres are kept wall_clearance away from every solid, and the
+// velocity component into the solid is removed.
+
+void kernel_project(const StepInputs& in, World& w, ThreadPool& pool) {
+  const double clearance = in.model.params.wall_clearance;
+  const double friction = in.model.params.wall_friction;
+  pool.parallel_for(w.size(), [&](size_t b, size_t e) {
+    for (size_t p = b; p < e; ++p) {
+      for (int iter = 0; iter < 4; ++iter) {
+        double s = in.geo.sdf(w.x[p]);
+        if (s >= clearance) break;
+        Vec2 n = in.geo.normal(w.x[p]);
+        if (n.squaredNorm() == 0) break;
+        w.x[p] += (clearance - s) * n;
+        double vn = w.v[p].dot(n);
+        if (vn < 0) {
+          w.v[p] -= vn * n;
+          w.v[p] *= (1 - friction);
+        }
+      }
+    }
+  });
+}
+
+}  // namespace crowdmpm

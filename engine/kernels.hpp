@@ -1,0 +1,90 @@
+#pragma once
+// One MPM step of the crowd material, kernel by kernel (DESIGN.md section 2). Each kernel is a
+// function of the arrays it names; outputs are per particle or per grid node and never shared
+// between threads, so results do not depend on the thread count. P2G is written as a gather
+// over particles binned by their stencil base, not as a scatter with atomics.
+#include <vector>
+
+#include "engine/geometry.hpp"
+#include "engine/model.hpp"
+#include "engine/navigation.hpp"
+#include "engine/parallel.hpp"
+#include "engine/world.hpp"
+
+namespace crowdmpm {
+
+struct Behaviour {
+  enum class Kind { None, Goal, Orbit, Attract };
+  Kind kind = Kind::None;
+  int nav = -1;                  // Goal: index of the navigation field
+  const Shape* target = nullptr; // Goal: agents inside a (non-exit) goal stop
+  Vec2 point = Vec2::Zero();     // Orbit: centre; Attract: the point
+  double sign = 1;               // Orbit: +1 counter-clockwise, -1 clockwise
+  double inward = 0;             // Orbit: weight of the inward (centre-seeking) component
+  double arrive_radius = 0.5;    // Attract: agents within this distance stop, m
+};
+
+struct BodyForce {
+  enum class Kind { Uniform, Radial, Vortex };
+  Kind kind = Kind::Uniform;
+  Vec2 acceleration = Vec2::Zero();  // Uniform, m/s^2
+  Vec2 center = Vec2::Zero();        // Radial, Vortex
+  double strength = 0;               // m/s^2; Radial: > 0 attracts; Vortex: > 0 counter-clockwise
+  double range = 1e300;              // m
+  std::vector<char> applies_to;      // per group index; empty: every group
+  bool applies(int group) const {
+    return applies_to.empty() || (group >= 0 && group < static_cast<int>(applies_to.size()) && applies_to[group]);
+  }
+};
+
+// Background grid, fixed for the life of a world. Nodes at origin + dx (i, j).
+struct Grid {
+  Vec2 origin = Vec2::Zero();
+  double dx = 0.5;
+  int nx = 0, ny = 0;
+  std::vector<double> mass;
+  std::vector<Vec2> velocity;  // momentum during P2G, velocity after the grid update
+  std::vector<char> solid;     // node inside a solid
+  std::vector<Vec2> normal;    // outward normal of that solid
+  // Scratch, reused every step: particle stencil bases, binning, P2G payloads.
+  std::vector<int> bin_start, order, base, cursor;
+  std::vector<Vec2> momentum;
+  std::vector<Mat2> affine;
+
+  void init(const Geometry& geo, double cell);
+  size_t nodes() const { return static_cast<size_t>(nx) * ny; }
+  int node(int i, int j) const { return j * nx + i; }
+};
+
+// Cell lists for the pair traction, cell size >= the largest interaction range.
+struct NeighbourGrid {
+  Vec2 origin = Vec2::Zero();
+  double h = 1;
+  int nx = 0, ny = 0;
+  std::vector<int> start, order, cell, cursor;
+  void init(const Geometry& geo, double range);
+  void build(const World& w);
+};
+
+struct StepInputs {
+  const Model& model;
+  const Geometry& geo;
+  const std::vector<NavField>& navs;
+  const std::vector<Behaviour>& behaviours;
+  const std::vector<BodyForce>& forces;
+  double dt;
+};
+
+// Continuum pressure P(J) of the crowd/fluid material (positive in compression).
+double material_pressure(const MaterialParams& p, double J);
+// Kirchhoff stress tau = J sigma of the particle's material.
+Mat2 kirchhoff_stress(const Model& m, const Mat2& F, double J);
+
+void kernel_drive(const StepInputs& in, World& w, ThreadPool& pool);
+void kernel_traction(const StepInputs& in, const NeighbourGrid& nb, World& w, ThreadPool& pool);
+void kernel_p2g(const StepInputs& in, const World& w, Grid& g, ThreadPool& pool);
+void kernel_grid_update(const StepInputs& in, Grid& g, ThreadPool& pool);
+void kernel_g2p(const StepInputs& in, const Grid& g, World& w, ThreadPool& pool);
+void kernel_project(const StepInputs& in, World& w, ThreadPool& pool);
+
+}  // namespace crowdmpm

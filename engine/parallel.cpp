@@ -1,0 +1,87 @@
+#include "engine/parallel.hpp"
+
+#include "engine/error.hpp"
+
+namespace crowdmpm {
+
+ThreadPool::ThreadPool(int threads) {
+  if (threads < 1 || threads > 256)
+    throw Error("thread count must be in [1, 256], got " + std::to_string(threads));
+  for (int i = 1; i < threads; ++i) workers_.emplace_back([this, i] { worker(i); });
+}
+
+ThreadPool::~ThreadPool() {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    stop_ = true;
+  }
+  start_cv_.notify_all();
+  for (auto& t : workers_) t.join();
+}
+
+static void chunk(size_t n, int parts, int index, size_t& begin, size_t& end) {
+  size_t base = n / parts, extra = n % parts;
+  size_t i = static_cast<size_t>(index);
+  begin = i * base + std::min(i, extra);
+  end = begin + base + (i < extra ? 1 : 0);
+}
+
+void ThreadPool::worker(int index) {
+  unsigned long seen = 0;
+  for (;;) {
+    const std::function<void(size_t, size_t)>* task;
+    size_t n;
+    {
+      std::unique_lock<std::mutex> lock(mutex_);
+      start_cv_.wait(lock, [&] { return stop_ || generation_ != seen; });
+      if (stop_) return;
+      seen = generation_;
+      task = task_;
+      n = n_;
+    }
+    size_t b, e;
+    chunk(n, threads(), index, b, e);
+    std::exception_ptr err;
+    try {
+      if (b < e) (*task)(b, e);
+    } catch (...) {
+      err = std::current_exception();
+    }
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      if (err && !error_) error_ = err;
+      if (--pending_ == 0) done_cv_.notify_one();
+    }
+  }
+}
+
+void ThreadPool::parallel_for(size_t n, const std::function<void(size_t, size_t)>& fn) {
+  if (workers_.empty() || n < 64) {
+    if (n) fn(0, n);
+    return;
+  }
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    task_ = &fn;
+    n_ = n;
+    pending_ = static_cast<int>(workers_.size());
+    error_ = nullptr;
+    ++generation_;
+  }
+  start_cv_.notify_all();
+  size_t b, e;
+  chunk(n, threads(), 0, b, e);
+  std::exception_ptr err;
+  try {
+    if (b < e) fn(b, e);
+  } catch (...) {
+    err = std::current_exception();
+  }
+  std::unique_lock<std::mutex> lock(mutex_);
+  done_cv_.wait(lock, [&] { return pending_ == 0; });
+  if (!err) err = error_;
+  task_ = nullptr;
+  if (err) std::rethrow_exception(err);
+}
+
+}  // namespace crowdmpm

@@ -1,0 +1,37 @@
+#pragma once
+// A small persistent thread pool. Kernels use it only as parallel_for over disjoint index
+// ranges whose outputs do not overlap, so results are bitwise identical for any thread count.
+#include <condition_variable>
+#include <functional>
+#include <mutex>
+#include <thread>
+#include <vector>
+
+namespace crowdmpm {
+
+class ThreadPool {
+ public:
+  explicit ThreadPool(int threads);
+  ~ThreadPool();
+  ThreadPool(const ThreadPool&) = delete;
+  ThreadPool& operator=(const ThreadPool&) = delete;
+
+  int threads() const { return static_cast<int>(workers_.size()) + 1; }
+  // Calls fn(begin, end) on contiguous chunks of [0, n); returns when all are done. An exception
+  // thrown by fn is rethrown here (the first one).
+  void parallel_for(size_t n, const std::function<void(size_t, size_t)>& fn);
+
+ private:
+  void worker(int index);
+  std::vector<std::thread> workers_;
+  std::mutex mutex_;
+  std::condition_variable start_cv_, done_cv_;
+  const std::function<void(size_t, size_t)>* task_ = nullptr;
+  size_t n_ = 0;
+  unsigned long generation_ = 0;
+  int pending_ = 0;
+  bool stop_ = false;
+  std::exception_ptr error_;
+};
+
+}  // namespace crowdmpm

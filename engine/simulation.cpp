@@ -1,0 +1,311 @@
+#include "engine/simulation.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <unordered_map>
+
+namespace crowdmpm {
+
+uint64_t Rng::next() {
+  uint64_t z = (state_ += 0x9e3779b97f4a7c15ull);
+  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
+  z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
+  return z ^ (z >> 31);
+}
+
+double Rng::uniform() { return static_cast<double>(next() >> 11) * 0x1.0p-53; }
+
+Simulation::Simulation(const ScenarioDef& scenario, const Model& model, int threads)
+    : scenario_(scenario), model_(model), pool_(threads), rng_(scenario.seed) {
+  const MaterialParams& P = model_.params;
+  if (scenario_.dt * P.max_speed > 0.25 * scenario_.cell_size)
+    throw Error(scenario_.source + ": time.dt: " + format_number(scenario_.dt) +
+                " s is too large for domain.cell_size " + format_number(scenario_.cell_size) +
+                " m: dt * max_speed (" + format_number(P.max_speed) + " m/s) must be <= cell_size / 4");
+  grid_.init(scenario_.geo, scenario_.cell_size);
+  build_behaviours();
+  double max_range = 2 * P.body_radius + P.comfort_distance;
+  for (const auto& g : scenario_.groups)
+    max_range = std::max(max_range, 2 * g.body_radius.value_or(P.body_radius) + g.comfort_distance.value_or(P.comfort_distance));
+  neighbours_.init(scenario_.geo, max_range);
+  for (const auto& f : scenario_.forces) {
+    BodyForce b;
+    b.kind = f.kind == ForceDef::Kind::Uniform ? BodyForce::Kind::Uniform
+             : f.kind == ForceDef::Kind::Radial ? BodyForce::Kind::Radial : BodyForce::Kind::Vortex;
+    b.acceleration = f.acceleration;
+    b.center = f.center;
+    b.strength = f.strength;
+    b.range = f.range;
+    if (!f.groups.empty()) {
+      b.applies_to.assign(scenario_.groups.size(), 0);
+      for (int gi : f.groups) b.applies_to[gi] = 1;
+    }
+    forces_.push_back(b);
+  }
+  size_t capacity = 0;
+  source_accum_.assign(scenario_.groups.size(), 0);
+  source_spawned_.assign(scenario_.groups.size(), 0);
+  for (size_t gi = 0; gi < scenario_.groups.size(); ++gi)
+    if (scenario_.groups[gi].is_source) capacity += scenario_.groups[gi].max_count;
+  world_.reserve(capacity + 1024);
+  for (size_t gi = 0; gi < scenario_.groups.size(); ++gi)
+    if (!scenario_.groups[gi].is_source) place_group(gi);
+  spawn_sources();
+  prepare_derived();
+}
+
+int Simulation::nav_for(const std::string& target) {
+  for (size_t i = 0; i < nav_targets_.size(); ++i)
+    if (nav_targets_[i] == target) return static_cast<int>(i);
+  std::vector<const Shape*> shapes;
+  if (target == "nearest_exit") {
+    for (const auto& e : scenario_.geo.exits) shapes.push_back(&e.shape);
+  } else {
+    const NamedShape* t = scenario_.geo.find_target(target);
+    if (!t) throw Error("no exit or goal with id \"" + target + "\"");
+    shapes.push_back(&t->shape);
+  }
+  navs_.emplace_back(scenario_.geo, shapes, scenario_.nav_cell, model_.params.wall_clearance);
+  nav_targets_.push_back(target);
+  return static_cast<int>(navs_.size() - 1);
+}
+
+void Simulation::build_behaviours() {
+  // navs_ must not reallocate after behaviours point into it: build all fields first.
+  for (const auto& g : scenario_.groups)
+    if (g.behaviour.kind == BehaviourDef::Kind::Goal) nav_for(g.behaviour.target);
+  behaviours_.push_back(Behaviour{});  // 0: none
+  for (const auto& g : scenario_.groups) {
+    Behaviour b;
+    const BehaviourDef& d = g.behaviour;
+    switch (d.kind) {
+      case BehaviourDef::Kind::None: b.kind = Behaviour::Kind::None; break;
+      case BehaviourDef::Kind::Goal: {
+        b.kind = Behaviour::Kind::Goal;
+        b.nav = nav_for(d.target);
+        const NamedShape* t = d.target == "nearest_exit" ? nullptr : scenario_.geo.find_target(d.target);
+        bool is_exit = false;
+        for (const auto& e : scenario_.geo.exits) is_exit = is_exit || &e == t;
+        b.target = (t && !is_exit) ? &t->shape : nullptr;
+        break;
+      }
+      case BehaviourDef::Kind::Orbit:
+        b.kind = Behaviour::Kind::Orbit;
+        b.point = d.point;
+        b.sign = d.sign;
+        b.inward = d.inward;
+        break;
+      case BehaviourDef::Kind::Attract:
+        b.kind = Behaviour::Kind::Attract;
+        b.point = d.point;
+        b.arrive_radius = d.arrive_radius;
+        break;
+    }
+    group_behaviour_.push_back(static_cast<int>(behaviours_.size()));
+    behaviours_.push_back(b);
+  }
+}
+
+int Simulation::behaviour_for_target(const std::string& target) {
+  if (!scenario_.geo.find_target(target) && target != "nearest_exit")
+    throw Error("no exit or goal with id \"" + target + "\"");
+  for (size_t i = 0; i < nav_targets_.size(); ++i)
+    if (nav_targets_[i] == target)
+      for (size_t b = 0; b < behaviours_.size(); ++b)
+        if (behaviours_[b].kind == Behaviour::Kind::Goal && behaviours_[b].nav == static_cast<int>(i))
+          return static_cast<int>(b);
+  // A new field may reallocate navs_: behaviours refer to fields by index, so that is safe.
+  Behaviour b;
+  b.kind = Behaviour::Kind::Goal;
+  b.nav = nav_for(target);
+  const NamedShape* t = scenario_.geo.find_target(target);
+  bool is_exit = false;
+  for (const auto& e : scenario_.geo.exits) is_exit = is_exit || &e == t;
+  b.target = (t && !is_exit) ? &t->shape : nullptr;
+  behaviours_.push_back(b);
+  return static_cast<int>(behaviours_.size() - 1);
+}
+
+AgentDef Simulation::agent_template(const GroupDef& g, int gi) const {
+  AgentDef d;
+  d.velocity = g.velocity;
+  d.body_radius = g.body_radius.value_or(model_.params.body_radius);
+  d.comfort_distance = g.comfort_distance.value_or(model_.params.comfort_distance);
+  d.desired_speed = g.desired_speed;
+  d.behaviour = group_behaviour_[gi];
+  d.group = gi;
+  return d;
+}
+
+EntityId Simulation::add_agent(const AgentDef& def) {
+  if (def.behaviour < 0 || def.behaviour >= static_cast<int>(behaviours_.size()))
+    throw Error("agent behaviour index " + std::to_string(def.behaviour) + " out of range");
+  if (!def.position.allFinite() || !def.velocity.allFinite())
+    throw Error("agent position and velocity must be finite numbers");
+  if (scenario_.geo.sdf(def.position) < 0) throw Error("agent position is inside a wall, an obstacle or outside the domain");
+  return world_.add(def);
+}
+
+// Hexagonal lattice at the density asked for, jittered without overlap, inside the region and
+// outside solids and other agents. Sparser than asked if it does not fit at first; an error if
+// even the densest packing of the bodies cannot hold the count.
+void Simulation::place_group(size_t gi) {
+  const GroupDef& g = scenario_.groups[gi];
+  AgentDef tmpl = agent_template(g, static_cast<int>(gi));
+  const double r = tmpl.body_radius, clearance = std::max(model_.params.wall_clearance, 0.0);
+  const Geometry& geo = scenario_.geo;
+  auto free_at = [&](const Vec2& p) { return g.region.contains(p) && geo.sdf(p) >= clearance; };
+  // Free area by sampling at 5 cm.
+  const double h = 0.05;
+  long free_cells = 0;
+  for (double y = g.region.lo.y() + h / 2; y < g.region.hi.y(); y += h)
+    for (double x = g.region.lo.x() + h / 2; x < g.region.hi.x(); x += h) free_cells += free_at(Vec2(x, y));
+  const double area = static_cast<double>(free_cells) * h * h;
+  const long count = g.count >= 0 ? g.count : std::lround(g.density * area);
+  if (count == 0) return;
+  if (area <= 0) throw Error(g.path + ".spawn: the region has no walkable area (it lies inside walls, obstacles or outside the domain)");
+  const double densest = 2 / (std::sqrt(3.0) * 4 * r * r);
+  const double want = static_cast<double>(count) / area;
+  if (want > densest)
+    throw Error(g.path + (g.count >= 0 ? ".count" : ".density") + ": " + format_number(want) +
+                " persons/m^2 on " + format_number(area) + " m^2 of walkable area cannot hold bodies of radius " +
+                format_number(r) + " m (hexagonal packing allows at most " + format_number(densest) + ")");
+  // Existing agents (earlier groups) in a coarse hash for overlap checks.
+  std::unordered_map<long long, std::vector<Vec2>> occupied;
+  auto key = [](const Vec2& p) { return (static_cast<long long>(std::floor(p.x())) << 32) ^ static_cast<long long>(std::floor(p.y()) + 1e6); };
+  for (size_t p = 0; p < world_.size(); ++p) occupied[key(world_.x[p])].push_back(world_.x[p]);
+  auto overlaps = [&](const Vec2& p, double rr) {
+    for (int dy = -1; dy <= 1; ++dy)
+      for (int dx = -1; dx <= 1; ++dx) {
+        auto it = occupied.find(key(p + Vec2(dx, dy)));
+        if (it == occupied.end()) continue;
+        for (const auto& q : it->second)
+          if ((q - p).norm() < rr) return true;
+      }
+    return false;
+  };
+  double a = std::sqrt(2 / (std::sqrt(3.0) * want));
+  for (int attempt = 0; attempt < 200; ++attempt, a *= 0.98) {
+    if (a < 2 * r) break;
+    std::vector<Vec2> pts;
+    const double row = a * std::sqrt(3.0) / 2;
+    Vec2 off(rng_.uniform() * a, rng_.uniform() * row);
+    int k = 0;
+    for (double y = g.region.lo.y() + off.y() - row; y <= g.region.hi.y(); y += row, ++k)
+      for (double x = g.region.lo.x() + off.x() - a + (k % 2) * a / 2; x <= g.region.hi.x(); x += a) {
+        Vec2 p(x, y);
+        if (free_at(p) && !overlaps(p, 2 * r)) pts.push_back(p);
+      }
+    if (static_cast<long>(pts.size()) < count) continue;
+    // Choose count of them at random (Fisher-Yates on our own generator), keep lattice order.
+    std::vector<size_t> idx(pts.size());
+    for (size_t i = 0; i < idx.size(); ++i) idx[i] = i;
+    for (size_t i = idx.size() - 1; i > 0; --i) std::swap(idx[i], idx[static_cast<size_t>(rng_.uniform() * static_cast<double>(i + 1))]);
+    idx.resize(static_cast<size_t>(count));
+    std::sort(idx.begin(), idx.end());
+    const double jitter = 0.45 * (a - 2 * r);
+    for (size_t i : idx) {
+      AgentDef d = tmpl;
+      d.position = pts[i];
+      double ang = 2 * M_PI * rng_.uniform(), rad = jitter * std::sqrt(rng_.uniform());
+      Vec2 q = pts[i] + rad * Vec2(std::cos(ang), std::sin(ang));
+      if (free_at(q) && !overlaps(q, 2 * r)) d.position = q;
+      world_.add(d);
+      ++spawned_;
+      occupied[key(d.position)].push_back(d.position);
+    }
+    return;
+  }
+  throw Error(g.path + ".spawn: cannot place " + std::to_string(count) + " agents of radius " + format_number(r) +
+              " m without overlap in the walkable part of the region (" + format_number(area) + " m^2)");
+}
+
+long Simulation::pending_spawns() const {
+  long n = 0;
+  for (size_t gi = 0; gi < scenario_.groups.size(); ++gi) {
+    const auto& g = scenario_.groups[gi];
+    if (g.is_source && time() < std::min(g.end, scenario_.duration)) n += g.max_count - source_spawned_[gi];
+  }
+  return n;
+}
+
+void Simulation::spawn_sources() {
+  const double t = time();
+  for (size_t gi = 0; gi < scenario_.groups.size(); ++gi) {
+    const GroupDef& g = scenario_.groups[gi];
+    if (!g.is_source || t < g.start || t >= g.end) continue;
+    source_accum_[gi] += g.rate * scenario_.dt;
+    AgentDef tmpl = agent_template(g, static_cast<int>(gi));
+    while (source_accum_[gi] >= 1 && source_spawned_[gi] < g.max_count) {
+      bool placed = false;
+      for (int tries = 0; tries < 30 && !placed; ++tries) {
+        Vec2 p(g.region.lo.x() + rng_.uniform() * (g.region.hi.x() - g.region.lo.x()),
+               g.region.lo.y() + rng_.uniform() * (g.region.hi.y() - g.region.lo.y()));
+        if (!g.region.contains(p) || scenario_.geo.sdf(p) < model_.params.wall_clearance) continue;
+        bool clear = true;
+        for (size_t q = 0; q < world_.size() && clear; ++q)
+          clear = (world_.x[q] - p).norm() >= world_.radius[q] + tmpl.body_radius;
+        if (!clear) continue;
+        AgentDef d = tmpl;
+        d.position = p;
+        world_.add(d);
+        placed = true;
+      }
+      if (!placed) break;  // region full: try again next step
+      source_accum_[gi] -= 1;
+      ++source_spawned_[gi];
+      ++spawned_;
+    }
+  }
+}
+
+void Simulation::prepare_derived() {
+  StepInputs in{model_, scenario_.geo, navs_, behaviours_, forces_, scenario_.dt};
+  kernel_drive(in, world_, pool_);
+  neighbours_.build(world_);
+  kernel_traction(in, neighbours_, world_, pool_);
+}
+
+void Simulation::step() {
+  StepInputs in{model_, scenario_.geo, navs_, behaviours_, forces_, scenario_.dt};
+  kernel_drive(in, world_, pool_);
+  neighbours_.build(world_);
+  kernel_traction(in, neighbours_, world_, pool_);
+  kernel_p2g(in, world_, grid_, pool_);
+  kernel_grid_update(in, grid_, pool_);
+  kernel_g2p(in, grid_, world_, pool_);
+  kernel_project(in, world_, pool_);
+  ++steps_;
+  check_finite();
+  retire_at_exits();
+  spawn_sources();
+}
+
+void Simulation::run_steps(long n) {
+  for (long i = 0; i < n; ++i) step();
+}
+
+bool Simulation::finished() const {
+  if (time() >= scenario_.duration - 1e-9) return true;
+  return scenario_.stop_when_empty && world_.size() == 0 && pending_spawns() == 0 && steps_ > 0;
+}
+
+void Simulation::check_finite() {
+  for (size_t p = 0; p < world_.size(); ++p)
+    if (!world_.x[p].allFinite() || !world_.v[p].allFinite())
+      throw Error("simulation became unstable at t = " + format_number(time()) + " s: agent " +
+                  std::to_string(world_.id[p]) + " has a non-finite position or velocity (reduce time.dt or the material stiffness E)");
+}
+
+void Simulation::retire_at_exits() {
+  if (scenario_.geo.exits.empty()) return;
+  for (size_t p = world_.size(); p-- > 0;) {
+    int e = scenario_.geo.exit_at(world_.x[p]);
+    if (e >= 0) {
+      exit_events_.push_back({world_.id[p], e, time()});
+      world_.remove_at(p);
+    }
+  }
+}
+
+}  // namespace crowdmpm

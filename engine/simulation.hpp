@@ -1,0 +1,85 @@
+#pragma once
+// A running scenario: the world, its grid, navigation fields and behaviours, and one step of
+// the crowd material (drive, traction, P2G, grid update, G2P, projection, exits, sources).
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "engine/kernels.hpp"
+#include "engine/scenario.hpp"
+
+namespace crowdmpm {
+
+struct ExitEvent {
+  EntityId id;
+  int exit;    // index into geometry.exits
+  double time; // s
+};
+
+// Deterministic random numbers (SplitMix64): the same seed gives the same stream everywhere.
+class Rng {
+ public:
+  explicit Rng(uint64_t seed) : state_(seed) {}
+  uint64_t next();
+  double uniform();  // [0, 1)
+ private:
+  uint64_t state_;
+};
+
+class Simulation {
+ public:
+  // model: the material to use (the scenario's own model is ignored when it is given).
+  Simulation(const ScenarioDef& scenario, const Model& model, int threads = 1);
+
+  void step();  // advance by dt
+  void run_steps(long n);
+  bool finished() const;
+
+  double time() const { return static_cast<double>(steps_) * scenario_.dt; }
+  long steps() const { return steps_; }
+  const ScenarioDef& scenario() const { return scenario_; }
+  const Model& model() const { return model_; }
+  Model& mutable_model() { return model_; }
+  World& world() { return world_; }
+  const World& world() const { return world_; }
+  const Grid& grid() const { return grid_; }
+  const std::vector<ExitEvent>& exit_events() const { return exit_events_; }
+  long spawned() const { return spawned_; }
+  long pending_spawns() const;  // sources still to spawn (within their windows)
+  int threads() const { return pool_.threads(); }
+
+  // Add one agent (C API, tests); returns its id. Behaviour: index into behaviours().
+  EntityId add_agent(const AgentDef& def);
+  const std::vector<Behaviour>& behaviours() const { return behaviours_; }
+  int behaviour_for_target(const std::string& target);  // goal behaviour to an exit/goal id
+
+ private:
+  void build_behaviours();
+  int nav_for(const std::string& target);
+  void place_group(size_t gi);
+  void spawn_sources();
+  void retire_at_exits();
+  void check_finite();
+  void prepare_derived();  // drive + traction on the current state, so pressure is defined
+  AgentDef agent_template(const GroupDef& g, int group_index) const;
+
+  ScenarioDef scenario_;
+  Model model_;
+  ThreadPool pool_;
+  World world_;
+  Grid grid_;
+  NeighbourGrid neighbours_;
+  std::vector<NavField> navs_;
+  std::vector<std::string> nav_targets_;
+  std::vector<Behaviour> behaviours_;
+  std::vector<int> group_behaviour_;
+  std::vector<BodyForce> forces_;
+  std::vector<ExitEvent> exit_events_;
+  std::vector<double> source_accum_;
+  std::vector<long> source_spawned_;
+  Rng rng_;
+  long steps_ = 0;
+  long spawned_ = 0;
+};
+
+}  // namespace crowdmpm

@@ -1,0 +1,134 @@
+#include "engine/traction.hpp"
+
+#include <cmath>
+
+namespace crowdmpm {
+
+const char* const TractionNet::kInputNames[TractionNet::kInputs] = {
+    "comfort_distance", "distance", "ahead", "side", "closing_speed", "shear_speed"};
+
+double apply_activation(Activation a, double x) {
+  switch (a) {
+    case Activation::Identity: return x;
+    case Activation::Tanh: return std::tanh(x);
+    case Activation::Relu: return x > 0 ? x : 0;
+    case Activation::Softplus: return x > 30 ? x : std::log1p(std::exp(x));
+    case Activation::Sigmoid: return 1 / (1 + std::exp(-x));
+  }
+  return x;
+}
+
+const char* activation_name(Activation a) {
+  switch (a) {
+    case Activation::Identity: return "identity";
+    case Activation::Tanh: return "tanh";
+    case Activation::Relu: return "relu";
+    case Activation::Softplus: return "softplus";
+    case Activation::Sigmoid: return "sigmoid";
+  }
+  return "identity";
+}
+
+Activation parse_activation(const JsonReader& r, const std::string& key, const std::string& fallback) {
+  std::string s = r.one_of(key, {"identity", "tanh", "relu", "softplus", "sigmoid"}, fallback);
+  if (s == "tanh") return Activation::Tanh;
+  if (s == "relu") return Activation::Relu;
+  if (s == "softplus") return Activation::Softplus;
+  if (s == "sigmoid") return Activation::Sigmoid;
+  return Activation::Identity;
+}
+
+double TractionNet::eval(const double* inputs) const {
+  if (layers.empty()) return constant;
+  double a[kMaxWidth], b[kMaxWidth];
+  const double* in = inputs;
+  double* out = a;
+  for (const auto& L : layers) {
+    for (int o = 0; o < L.out; ++o) {
+      double s = L.biases[o];
+      const double* w = &L.weights[static_cast<size_t>(o) * L.in];
+      for (int i = 0; i < L.in; ++i) s += w[i] * in[i];
+      out[o] = apply_activation(L.activation, s);
+    }
+    in = out;
+    out = (out == a) ? b : a;
+  }
+  return apply_activation(output, in[0]);
+}
+
+size_t TractionNet::parameter_count() const {
+  size_t n = 0;
+  for (const auto& L : layers) n += L.weights.size() + L.biases.size();
+  return n;
+}
+
+TractionNet TractionNet::parse(const JsonReader& r) {
+  r.require_object();
+  r.allow_only({"constant", "inputs", "layers", "output"});
+  TractionNet net;
+  if (r.has("constant")) {
+    if (r.has("layers")) r.fail("give either \"constant\" or \"layers\", not both");
+    net.constant = r.non_negative("constant", std::nullopt);
+    return net;
+  }
+  if (auto names = r.get("inputs")) {
+    if (names->size() != kInputs)
+      names->fail("must list the " + std::to_string(kInputs) + " network inputs in order, got " +
+                  std::to_string(names->size()));
+    for (size_t i = 0; i < kInputs; ++i)
+      if (names->item(i).as_string() != kInputNames[i])
+        names->item(i).fail(std::string("expected \"") + kInputNames[i] + "\" (inputs are fixed and ordered)");
+  }
+  std::string out = r.one_of("output", {"softplus", "relu"}, "softplus");
+  net.output = out == "relu" ? Activation::Relu : Activation::Softplus;
+  auto layers = r.at("layers");
+  if (layers.size() == 0) layers.fail("needs at least one layer");
+  int prev = kInputs;
+  for (size_t l = 0; l < layers.size(); ++l) {
+    auto L = layers.item(l);
+    L.require_object();
+    L.allow_only({"weights", "biases", "activation"});
+    DenseLayer d;
+    auto W = L.at("weights");
+    d.out = static_cast<int>(W.size());
+    if (d.out < 1 || d.out > kMaxWidth)
+      W.fail("must have between 1 and " + std::to_string(kMaxWidth) + " rows, got " + std::to_string(d.out));
+    d.in = prev;
+    for (size_t o = 0; o < W.size(); ++o) {
+      auto row = W.item(o);
+      auto vals = row.as_numbers();
+      if (static_cast<int>(vals.size()) != prev)
+        row.fail("has " + std::to_string(vals.size()) + " columns but the layer input has " +
+                 std::to_string(prev) + " values" + (l == 0 ? " (the network has 6 inputs)" : " (the previous layer's width)"));
+      d.weights.insert(d.weights.end(), vals.begin(), vals.end());
+    }
+    auto B = L.at("biases");
+    d.biases = B.as_numbers();
+    if (static_cast<int>(d.biases.size()) != d.out)
+      B.fail("has " + std::to_string(d.biases.size()) + " values but the layer has " +
+             std::to_string(d.out) + " rows");
+    d.activation = parse_activation(L, "activation", l + 1 == layers.size() ? "identity" : "tanh");
+    prev = d.out;
+    net.layers.push_back(std::move(d));
+  }
+  if (prev != 1) layers.item(layers.size() - 1).fail("the last layer must have 1 output (the gain K), got " + std::to_string(prev));
+  return net;
+}
+
+json TractionNet::to_json() const {
+  if (layers.empty()) return json{{"constant", constant}};
+  json j;
+  j["inputs"] = json::array();
+  for (auto n : kInputNames) j["inputs"].push_back(n);
+  j["output"] = activation_name(output);
+  j["layers"] = json::array();
+  for (const auto& L : layers) {
+    json W = json::array();
+    for (int o = 0; o < L.out; ++o)
+      W.push_back(std::vector<double>(L.weights.begin() + o * L.in, L.weights.begin() + (o + 1) * L.in));
+    j["layers"].push_back({{"weights", W}, {"biases", L.biases}, {"activation", activation_name(L.activation)}});
+  }
+  return j;
+}
+
+}  // namespace crowdmpm
