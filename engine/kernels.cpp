@@ -142,6 +142,14 @@ void kernel_drive(const StepInputs& in, World& w, ThreadPool& pool) {
 // ---------------------------------------------------------------------------------------------
 // 2. Pair traction: f_p = sum_q K_pq phi(d) (x_p - x_q)/d for d < theta2 = r_p + r_q + c_p.
 
+double contact_potential(double d, double theta1, double c, double eps) {
+  // phi(d) = -log((d - theta1)/c): zero at theta2 = theta1 + c, unbounded towards contact. Below
+  // theta1 + eps it continues along its tangent, so it keeps growing through and past contact
+  // instead of saturating (a saturated barrier lets fast bodies pass through each other).
+  if (d >= theta1 + eps) return -std::log((d - theta1) / c);
+  return -std::log(eps / c) + (theta1 + eps - d) / eps;
+}
+
 void kernel_traction(const StepInputs& in, const NeighbourGrid& nb, World& w, ThreadPool& pool) {
   const TractionNet& net = in.model.traction;
   const bool active = in.model.has_traction();
@@ -177,7 +185,7 @@ void kernel_traction(const StepInputs& in, const NeighbourGrid& nb, World& w, Th
               inputs[4] = -dv.dot(n);
               inputs[5] = dv.dot(np);
               double K = net.eval(inputs);
-              double phi = -std::log((std::max(d, theta1 + eps) - theta1) / cp);
+              double phi = contact_potential(d, theta1, cp, eps);
               force -= K * phi * n;
               virial += K * phi * d;
             }

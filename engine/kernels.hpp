@@ -75,6 +75,8 @@ struct StepInputs {
   double dt;
 };
 
+// phi(d) of the pair traction for contact distance theta1, comfort distance c, smallest gap eps.
+double contact_potential(double d, double theta1, double c, double eps);
 // Continuum pressure P(J) of the crowd/fluid material (positive in compression).
 double material_pressure(const MaterialParams& p, double J);
 // Kirchhoff stress tau = J sigma of the particle's material.

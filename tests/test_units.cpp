@@ -1,0 +1,148 @@
+// Unit tests of the engine's parts: shapes, navigation, traction network, world bookkeeping,
+// thread pool, writers.
+#include <catch2/catch.hpp>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+
+#include "support.hpp"
+
+using namespace crowdmpm;
+
+TEST_CASE("shape signed distances", "[units]") {
+  Shape sq = Shape::rect(Vec2(0, 0), Vec2(2, 2));
+  CHECK(sq.sdf(Vec2(1, 1)) == Approx(-1));
+  CHECK(sq.sdf(Vec2(3, 1)) == Approx(1));
+  CHECK(sq.sdf(Vec2(3, 3)) == Approx(std::sqrt(2.0)));
+  CHECK(sq.area() == Approx(4));
+  Shape c = Shape::circle(Vec2(1, 0), 0.5);
+  CHECK(c.sdf(Vec2(1, 2)) == Approx(1.5));
+  Shape wall = Shape::polyline({Vec2(0, 0), Vec2(4, 0)}, 0.2);
+  CHECK(wall.sdf(Vec2(2, 1)) == Approx(0.9));
+  CHECK(wall.sdf(Vec2(2, 0)) == Approx(-0.1));
+  CHECK(wall.sdf(Vec2(5, 0)) == Approx(0.9));
+}
+
+TEST_CASE("geometry sdf includes the domain border and normals point out of solids", "[units]") {
+  Geometry g;
+  g.lo = Vec2(0, 0);
+  g.hi = Vec2(10, 10);
+  g.solids.push_back(Shape::circle(Vec2(5, 5), 1));
+  CHECK(g.sdf(Vec2(0.5, 5)) == Approx(0.5));
+  CHECK(g.sdf(Vec2(5, 6.5)) == Approx(0.5));
+  Vec2 n = g.normal(Vec2(5, 6.5));
+  CHECK(n.y() == Approx(1).margin(1e-6));
+  CHECK(g.sdf(Vec2(-1, 5)) < 0);  // outside the domain is solid
+}
+
+TEST_CASE("navigation field goes around an obstacle", "[units]") {
+  Geometry g;
+  g.lo = Vec2(0, 0);
+  g.hi = Vec2(10, 4);
+  g.solids.push_back(Shape::rect(Vec2(4, 0), Vec2(5, 3)));  // a wall with a gap at the top
+  Shape target = Shape::rect(Vec2(9, 0), Vec2(10, 4));
+  NavField nav(g, {&target}, 0.1, 0.1);
+  // Below the wall's top, right in front of it: the way is up, not through the wall.
+  Vec2 d = nav.direction(Vec2(3.5, 1));
+  CHECK(d.y() > 0.7);
+  // Travel distance exceeds the straight line and is close to the path over the wall.
+  // Shortest path: up to the wall's corner (4, 3.1), along its top, then straight to x = 9.
+  double straight = 9 - 1.0, around = std::hypot(3.0, 2.1) + 1.0 + 4.0;
+  double t = nav.distance(Vec2(1, 1));
+  CHECK(t > straight);
+  CHECK(t == Approx(around).epsilon(0.05));
+  CHECK(nav.reachable(Vec2(1, 1)));
+}
+
+TEST_CASE("traction network evaluates as its layers say", "[units]") {
+  json j = {{"layers", {{{"weights", {{1, 0, 0, 0, 0, 0}, {0, 1, 0, 0, 0, 0}}}, {"biases", {0.5, 0}}, {"activation", "tanh"}},
+                         {{"weights", {{2, -1}}}, {"biases", {0.1}}, {"activation", "identity"}}}}};
+  TractionNet net = TractionNet::parse(JsonReader(j, "traction"));
+  double in[6] = {0.3, 0.7, 0, 0, 0, 0};
+  double expected = std::log1p(std::exp(2 * std::tanh(0.8) - std::tanh(0.7) + 0.1));
+  CHECK(net.eval(in) == Approx(expected).epsilon(1e-12));
+  CHECK(net.parameter_count() == 12 + 2 + 2 + 1);
+  json bad = j;
+  bad["layers"][0]["weights"][1] = {1, 2, 3};
+  CHECK_THROWS_WITH(TractionNet::parse(JsonReader(bad, "traction")), Catch::Contains("traction.layers[0].weights[1]"));
+}
+
+TEST_CASE("contact potential is zero at the comfort distance and keeps growing past contact", "[units]") {
+  CHECK(contact_potential(0.7, 0.4, 0.3, 0.01) == Approx(0).margin(1e-12));
+  CHECK(contact_potential(0.41, 0.4, 0.3, 0.01) == Approx(std::log(30.0)));
+  CHECK(contact_potential(0.40, 0.4, 0.3, 0.01) > contact_potential(0.41, 0.4, 0.3, 0.01));
+  CHECK(contact_potential(0.35, 0.4, 0.3, 0.01) > contact_potential(0.40, 0.4, 0.3, 0.01) + 4);
+}
+
+TEST_CASE("world ids stay valid through swap-removal", "[units]") {
+  World w;
+  EntityId a = w.add(AgentDef{}), b = w.add(AgentDef{}), c = w.add(AgentDef{});
+  w.x[w.index_of(c)] = Vec2(3, 3);
+  w.remove_at(static_cast<size_t>(w.index_of(a)));
+  CHECK(w.size() == 2);
+  CHECK(w.index_of(a) == -1);
+  CHECK(w.x[w.index_of(c)] == Vec2(3, 3));
+  CHECK(w.index_of(b) >= 0);
+  CHECK(w.index_of(0) == -1);
+  CHECK(w.index_of(99) == -1);
+}
+
+TEST_CASE("thread pool covers every index once and rethrows", "[units]") {
+  ThreadPool pool(2);
+  std::vector<int> hits(1000, 0);
+  pool.parallel_for(hits.size(), [&](size_t b, size_t e) { for (size_t i = b; i < e; ++i) ++hits[i]; });
+  for (int h : hits) CHECK(h == 1);
+  CHECK_THROWS_WITH(pool.parallel_for(1000, [](size_t b, size_t) { if (b > 0) throw Error("boom"); }), "boom");
+  CHECK_THROWS(ThreadPool(0));
+}
+
+TEST_CASE("trajectory and npy writers produce readable files", "[units]") {
+  auto dir = std::filesystem::temp_directory_path() / "crowdmpm_units";
+  std::filesystem::create_directories(dir);
+  World w;
+  AgentDef d;
+  d.position = Vec2(1.5, -2.25);
+  w.add(d);
+  {
+    TrajectoryWriter t((dir / "t.txt").string(), 16, "unit test");
+    t.write_frame(w, 7);
+    t.close();
+  }
+  std::ifstream in(dir / "t.txt");
+  std::string line, last;
+  std::getline(in, line);
+  CHECK(line == "# framerate: 16");
+  while (std::getline(in, line)) last = line;
+  CHECK(last == "1 7 1.50000 -2.25000 0");
+  {
+    NpyWriter n((dir / "a.npy").string(), 2, 3, 1);
+    n.write_frame(std::vector<float>(6, 1.0f));
+    n.write_frame(std::vector<float>(6, 2.0f));
+    n.close();
+  }
+  CHECK(std::filesystem::file_size(dir / "a.npy") == 128 + 12 * 4);
+  std::ifstream npy(dir / "a.npy", std::ios::binary);
+  std::string header(128, '\0');
+  npy.read(&header[0], 128);
+  CHECK(header.find("'shape': (2, 2, 3)") != std::string::npos);
+  CHECK_THROWS_WITH(TrajectoryWriter("/nonexistent/dir/t.txt", 10, ""), Catch::Contains("/nonexistent/dir/t.txt"));
+}
+
+TEST_CASE("groups are placed at the density asked, without overlap, outside solids", "[units]") {
+  const char* text = R"({"format": "crowdmpm-scenario", "version": 1,
+    "domain": {"min": [0, 0], "max": [10, 10]}, "time": {"duration": 1},
+    "geometry": {"obstacles": [{"circle": {"center": [5, 5], "radius": 1}}]},
+    "groups": [{"spawn": {"rect": [1, 1, 9, 9]}, "density": 5, "behaviour": {"type": "none"}}]})";
+  ScenarioDef s = ScenarioDef::parse_text(text);
+  Simulation sim(s, Model::default_model(), 1);
+  const World& w = sim.world();
+  double free_area = 64 - M_PI * 1.1 * 1.1;  // minus the obstacle and its clearance
+  CHECK(static_cast<double>(w.size()) == Approx(5 * free_area).epsilon(0.03));
+  double closest = 1e300;
+  for (size_t p = 0; p < w.size(); ++p) {
+    CHECK(s.geo.sdf(w.x[p]) >= 0.1 - 1e-9);
+    for (size_t q = p + 1; q < w.size(); ++q) closest = std::min(closest, (w.x[p] - w.x[q]).norm());
+  }
+  CHECK(closest >= 0.4 - 1e-9);
+}
