@@ -92,7 +92,10 @@ Args parse_args(int argc, char** argv, int first) {
   return a;
 }
 
+bool g_progress_line = false;  // a progress bar is on the terminal line: end it before errors
+
 void progress_bar(double t, double duration, size_t agents) {
+  g_progress_line = true;
   const int width = 40;
   double f = duration > 0 ? std::min(1.0, t / duration) : 1;
   int filled = static_cast<int>(f * width);
@@ -157,10 +160,10 @@ int main(int argc, char** argv) {
     if (cmd == "validate") return cmd_validate(a);
     usage_error("unknown command '" + cmd + "'");
   } catch (const Error& e) {
-    std::fprintf(stderr, "\ncrowdmpm: error: %s\n", e.what());
+    std::fprintf(stderr, "%scrowdmpm: error: %s\n", g_progress_line ? "\n" : "", e.what());
     return 1;
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "\ncrowdmpm: internal error: %s\n", e.what());
+    std::fprintf(stderr, "%scrowdmpm: internal error: %s\n", g_progress_line ? "\n" : "", e.what());
     return 3;
   }
 }

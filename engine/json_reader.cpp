@@ -1,6 +1,8 @@
 #include "engine/json_reader.hpp"
 
 #include <cmath>
+#include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <sstream>
 
@@ -28,6 +30,8 @@ static std::string type_name(const json& v) {
 }
 
 std::string read_text_file(const std::string& path) {
+  std::error_code ec;
+  if (std::filesystem::is_directory(path, ec)) throw Error(path + ": is a folder, not a file");
   std::ifstream in(path, std::ios::binary);
   if (!in) throw Error(path + ": cannot open file for reading");
   std::ostringstream s;
@@ -40,17 +44,21 @@ json parse_json_text(const std::string& text, const std::string& source_name) {
   try {
     return json::parse(text);
   } catch (const json::parse_error& e) {
-    // nlohmann reports a byte offset; translate it to line and column for a person.
-    size_t offset = std::min<size_t>(e.byte, text.size());
-    size_t line = 1, col = 1;
-    for (size_t i = 0; i + 1 < offset; ++i) {
-      if (text[i] == '\n') { ++line; col = 1; } else { ++col; }
-    }
+    // nlohmann's message carries "at line L, column C"; lift the position to the front so the
+    // message reads like a compiler's: file:line:column: reason.
     std::string msg = e.what();
-    auto pos = msg.find("parse error");
-    if (pos != std::string::npos) msg = msg.substr(pos);
-    throw Error(source_name + ":" + std::to_string(line) + ":" + std::to_string(col) +
-                ": invalid JSON (" + msg + ")");
+    size_t line = 0, col = 0;
+    auto at = msg.find("at line ");
+    if (at != std::string::npos) std::sscanf(msg.c_str() + at, "at line %zu, column %zu", &line, &col);
+    auto colon = msg.find(": ", at == std::string::npos ? 0 : at);
+    std::string reason = colon == std::string::npos ? msg : msg.substr(colon + 2);
+    std::string where = line ? ":" + std::to_string(line) + ":" + std::to_string(col) : "";
+    throw Error(source_name + where + ": invalid JSON: " + reason);
+  } catch (const json::exception& e) {
+    // e.g. a number too large for a double ("1e400").
+    std::string msg = e.what();
+    auto pos = msg.find("] ");
+    throw Error(source_name + ": invalid JSON: " + (pos == std::string::npos ? msg : msg.substr(pos + 2)));
   }
 }
 

@@ -32,8 +32,8 @@ void Grid::init(const Geometry& geo, double cell) {
     }
 }
 
-void NeighbourGrid::init(const Geometry& geo, double range) {
-  h = std::max(range, 1e-3);
+void NeighbourGrid::init(const Geometry& geo, double cell_size) {
+  h = std::max(cell_size, 1e-3);
   origin = geo.lo - Vec2(h, h);
   nx = static_cast<int>(std::ceil((geo.hi.x() - geo.lo.x()) / h)) + 3;
   ny = static_cast<int>(std::ceil((geo.hi.y() - geo.lo.y()) / h)) + 3;

@@ -60,9 +60,10 @@ struct Grid {
 struct NeighbourGrid {
   Vec2 origin = Vec2::Zero();
   double h = 1;
+  double range = 0;  // interaction reach the cells were sized for (h >= range)
   int nx = 0, ny = 0;
   std::vector<int> start, order, cell, cursor;
-  void init(const Geometry& geo, double range);
+  void init(const Geometry& geo, double cell_size);
   void build(const World& w);
 };
 

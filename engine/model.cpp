@@ -42,7 +42,14 @@ Model Model::default_model() {
                "<built-in default model>");
 }
 
-Model Model::load(const std::string& path) { return parse(JsonReader(load_json_file(path), ""), path); }
+Model Model::load(const std::string& path) {
+  json j = load_json_file(path);
+  try {
+    return parse(JsonReader(j, ""), path);
+  } catch (const Error& e) {
+    throw Error(path + ": " + e.what());
+  }
+}
 
 Model Model::parse(const JsonReader& r, const std::string& source) {
   r.require_object();

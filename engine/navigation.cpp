@@ -45,6 +45,7 @@ NavField::NavField(const Geometry& geo, const std::vector<const Shape*>& targets
         }
     }
   }
+  seeded_ = !heap.empty();
   auto value = [&](int i, int j) { return (i < 0 || j < 0 || i >= nx_ || j >= ny_) ? kInf : T_[index(i, j)]; };
   while (!heap.empty()) {
     auto [t, k] = heap.top();

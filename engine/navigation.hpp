@@ -21,6 +21,7 @@ class NavField {
   double distance(const Vec2& p) const;
   bool reachable(const Vec2& p) const { return distance(p) < 1e299; }
 
+  bool has_target() const { return seeded_; }
   int nx() const { return nx_; }
   int ny() const { return ny_; }
   double cell() const { return h_; }
@@ -32,6 +33,7 @@ class NavField {
   int nx_, ny_;
   std::vector<double> T_;
   std::vector<Vec2> dir_;
+  bool seeded_ = false;
 };
 
 }  // namespace crowdmpm

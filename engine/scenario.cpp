@@ -90,16 +90,20 @@ ScenarioDef ScenarioDef::parse(const json& j, const std::string& source, const s
     dom.fail_at("max", "must be greater than domain.min in both x and y");
   s.cell_size = dom.in_range("cell_size", 0.05, 10, 0.5);
   Vec2 ext = s.geo.hi - s.geo.lo;
-  if (ext.x() / s.cell_size * ext.y() / s.cell_size > 5e7)
-    dom.fail_at("cell_size", "gives more than 5e7 grid cells for this domain; use a larger cell");
+  if (ext.x() / s.cell_size * ext.y() / s.cell_size > 2e7)
+    dom.fail_at("cell_size", "gives more than 2e7 grid cells for this domain (" + format_number(ext.x()) + " m x " +
+                                 format_number(ext.y()) + " m); use a larger cell");
 
+  // Default navigation cell: 0.1 m, coarser on venues so large that 0.1 m would exceed 1e7 cells.
+  s.nav_cell = std::max(0.1, std::ceil(std::sqrt(ext.x() * ext.y() / 1e7) * 100) / 100);
   if (auto nav = r.get("navigation")) {
     nav->require_object();
     nav->allow_only({"cell_size"});
-    s.nav_cell = nav->in_range("cell_size", 0.02, 5, 0.1);
+    s.nav_cell = nav->in_range("cell_size", 0.02, 5, s.nav_cell);
   }
-  if (ext.x() / s.nav_cell * ext.y() / s.nav_cell > 5e7)
-    r.fail_at("navigation.cell_size", "gives more than 5e7 navigation cells for this domain; set a larger navigation.cell_size");
+  if (ext.x() / s.nav_cell * ext.y() / s.nav_cell > 2e7)
+    r.fail_at("navigation.cell_size", "gives more than 2e7 navigation cells for this domain (" + format_number(ext.x()) +
+                                          " m x " + format_number(ext.y()) + " m); set a larger navigation.cell_size");
 
   auto t = r.at("time");
   t.require_object();
@@ -110,6 +114,7 @@ ScenarioDef ScenarioDef::parse(const json& j, const std::string& source, const s
   s.stop_when_empty = t.boolean("stop_when_empty", true);
   double spf = 1.0 / (s.output_rate * s.dt);
   if (spf < 1 - 1e-9) t.fail_at("output_rate", "is faster than the step rate 1/dt = " + format_number(1 / s.dt) + " per second");
+  if (spf > 1e7) t.fail_at("output_rate", "is so low that one frame takes more than 10,000,000 steps");
   if (std::abs(spf - std::round(spf)) > 1e-6)
     t.fail_at("output_rate", "1/(output_rate * dt) must be a whole number of steps, got " + format_number(spf));
 
@@ -123,7 +128,7 @@ ScenarioDef ScenarioDef::parse(const json& j, const std::string& source, const s
         try {
           s.model = Model::load(path);
         } catch (const Error& e) {
-          m->fail(std::string("cannot load model: ") + e.what());
+          m->fail(std::string("cannot load model ") + e.what());
         }
       }
     } else {
@@ -204,7 +209,16 @@ ScenarioDef ScenarioDef::parse(const json& j, const std::string& source, const s
       g.start = sr.non_negative("start", 0.0);
       g.end = sr.number("end", s.duration);
       if (!(g.end > g.start)) sr.fail_at("end", "must be greater than start (" + format_number(g.start) + "), got " + format_number(g.end));
-      g.max_count = sr.integer("max_count", 0, 10000000, static_cast<long>(std::ceil(g.rate * (std::min(g.end, s.duration) - g.start))));
+      if (g.start >= s.duration)
+        sr.fail_at("start", "is at or after time.duration (" + format_number(s.duration) + " s): the source would never spawn");
+      if (sr.has("max_count")) {
+        g.max_count = sr.integer("max_count", 0, 10000000, std::nullopt);
+      } else {
+        double expected = std::ceil(g.rate * (std::min(g.end, s.duration) - g.start));
+        if (expected > 1e7)
+          sr.fail_at("rate", "spawns " + format_number(expected) + " people over its window, more than 10,000,000; set max_count or lower the rate");
+        g.max_count = static_cast<int>(expected);
+      }
       parse_agent_fields(sr, g);
       check_target(g.behaviour);
       s.groups.push_back(std::move(g));

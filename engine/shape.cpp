@@ -121,7 +121,8 @@ Shape parse_region(const JsonReader& r, const std::vector<std::string>& other_ke
   r.allow_only(keys);
   int kinds = r.has("rect") + r.has("polygon") + r.has("circle");
   if (kinds != 1) r.fail("must have exactly one of \"rect\", \"polygon\" or \"circle\"");
-  if (auto rect = r.get("rect")) {
+  if (r.has("rect")) {
+    auto rect = std::optional<JsonReader>(r.at("rect"));
     auto v = rect->as_numbers();
     if (v.size() != 4) rect->fail("must be [xmin, ymin, xmax, ymax] (metres)");
     if (!(v[2] > v[0] && v[3] > v[1]))
@@ -129,7 +130,8 @@ Shape parse_region(const JsonReader& r, const std::vector<std::string>& other_ke
                  format_number(v[1]) + ", " + format_number(v[2]) + ", " + format_number(v[3]) + "]");
     return Shape::rect(Vec2(v[0], v[1]), Vec2(v[2], v[3]));
   }
-  if (auto c = r.get("circle")) {
+  if (r.has("circle")) {
+    auto c = std::optional<JsonReader>(r.at("circle"));
     c->require_object();
     c->allow_only({"center", "radius"});
     return Shape::circle(c->vec2("center", std::nullopt), c->positive("radius", std::nullopt));

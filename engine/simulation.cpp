@@ -23,11 +23,20 @@ Simulation::Simulation(const ScenarioDef& scenario, const Model& model, int thre
                 " s is too large for domain.cell_size " + format_number(scenario_.cell_size) +
                 " m: dt * max_speed (" + format_number(P.max_speed) + " m/s) must be <= cell_size / 4");
   grid_.init(scenario_.geo, scenario_.cell_size);
-  build_behaviours();
-  double max_range = 2 * P.body_radius + P.comfort_distance;
-  for (const auto& g : scenario_.groups)
-    max_range = std::max(max_range, 2 * g.body_radius.value_or(P.body_radius) + g.comfort_distance.value_or(P.comfort_distance));
-  neighbours_.init(scenario_.geo, max_range);
+  try {
+    build_behaviours();
+  } catch (const Error& e) {
+    throw Error(scenario_.source + ": " + e.what());
+  }
+  // A pair interacts up to r_p + r_q + c_p: the cell lists must cover the largest such reach.
+  double max_r = P.body_radius, max_c = P.comfort_distance;
+  for (const auto& g : scenario_.groups) {
+    max_r = std::max(max_r, g.body_radius.value_or(P.body_radius));
+    max_c = std::max(max_c, g.comfort_distance.value_or(P.comfort_distance));
+  }
+  max_radius_ = max_r;
+  max_comfort_ = max_c;
+  init_neighbours(2 * max_r + max_c);
   for (const auto& f : scenario_.forces) {
     BodyForce b;
     b.kind = f.kind == ForceDef::Kind::Uniform ? BodyForce::Kind::Uniform
@@ -48,8 +57,12 @@ Simulation::Simulation(const ScenarioDef& scenario, const Model& model, int thre
   for (size_t gi = 0; gi < scenario_.groups.size(); ++gi)
     if (scenario_.groups[gi].is_source) capacity += scenario_.groups[gi].max_count;
   world_.reserve(capacity + 1024);
-  for (size_t gi = 0; gi < scenario_.groups.size(); ++gi)
-    if (!scenario_.groups[gi].is_source) place_group(gi);
+  try {
+    for (size_t gi = 0; gi < scenario_.groups.size(); ++gi)
+      if (!scenario_.groups[gi].is_source) place_group(gi);
+  } catch (const Error& e) {
+    throw Error(scenario_.source + ": " + e.what());
+  }
   spawn_sources();
   prepare_derived();
 }
@@ -66,14 +79,22 @@ int Simulation::nav_for(const std::string& target) {
     shapes.push_back(&t->shape);
   }
   navs_.emplace_back(scenario_.geo, shapes, scenario_.nav_cell, model_.params.wall_clearance);
+  if (!navs_.back().has_target())
+    throw Error("target \"" + target + "\" has no walkable cell in or next to it (it lies inside solids or outside the domain)");
   nav_targets_.push_back(target);
   return static_cast<int>(navs_.size() - 1);
 }
 
 void Simulation::build_behaviours() {
   // navs_ must not reallocate after behaviours point into it: build all fields first.
-  for (const auto& g : scenario_.groups)
-    if (g.behaviour.kind == BehaviourDef::Kind::Goal) nav_for(g.behaviour.target);
+  for (const auto& g : scenario_.groups) {
+    if (g.behaviour.kind != BehaviourDef::Kind::Goal) continue;
+    try {
+      nav_for(g.behaviour.target);
+    } catch (const Error& e) {
+      throw Error(g.behaviour.path + ".target: " + e.what());
+    }
+  }
   behaviours_.push_back(Behaviour{});  // 0: none
   for (const auto& g : scenario_.groups) {
     Behaviour b;
@@ -143,6 +164,15 @@ EntityId Simulation::add_agent(const AgentDef& def) {
   if (!def.position.allFinite() || !def.velocity.allFinite())
     throw Error("agent position and velocity must be finite numbers");
   if (scenario_.geo.sdf(def.position) < 0) throw Error("agent position is inside a wall, an obstacle or outside the domain");
+  if (!(def.body_radius >= 0.05 && def.body_radius <= 0.5)) throw Error("agent body_radius must be in [0.05, 0.5] m, got " + format_number(def.body_radius));
+  if (!(def.comfort_distance >= 0.01 && def.comfort_distance <= 2)) throw Error("agent comfort_distance must be in [0.01, 2] m, got " + format_number(def.comfort_distance));
+  if (!(def.desired_speed >= 0 && def.desired_speed <= 12)) throw Error("agent desired_speed must be in [0, 12] m/s, got " + format_number(def.desired_speed));
+  if (def.group < 0) throw Error("agent group must be >= 0");
+  // Keep the cell lists wide enough for the new agent's reach (r + r_max + c).
+  double reach = 2 * std::max(def.body_radius, max_radius_) + std::max(def.comfort_distance, max_comfort_);
+  max_radius_ = std::max(max_radius_, def.body_radius);
+  max_comfort_ = std::max(max_comfort_, def.comfort_distance);
+  if (reach > neighbours_.range) init_neighbours(reach);
   return world_.add(def);
 }
 
@@ -155,15 +185,21 @@ void Simulation::place_group(size_t gi) {
   const double r = tmpl.body_radius, clearance = std::max(model_.params.wall_clearance, 0.0);
   const Geometry& geo = scenario_.geo;
   auto free_at = [&](const Vec2& p) { return g.region.contains(p) && geo.sdf(p) >= clearance; };
-  // Free area by sampling at 5 cm.
-  const double h = 0.05;
+  // Free area by sampling the part of the region inside the domain, at 5 cm or coarser so that
+  // at most ~4e6 samples are taken.
+  const Vec2 lo = g.region.lo.cwiseMax(geo.lo), hi = g.region.hi.cwiseMin(geo.hi);
   long free_cells = 0;
-  for (double y = g.region.lo.y() + h / 2; y < g.region.hi.y(); y += h)
-    for (double x = g.region.lo.x() + h / 2; x < g.region.hi.x(); x += h) free_cells += free_at(Vec2(x, y));
+  double h = 0.05;
+  if (hi.x() > lo.x() && hi.y() > lo.y()) {
+    h = std::max(0.05, std::sqrt((hi.x() - lo.x()) * (hi.y() - lo.y()) / 4e6));
+    for (double y = lo.y() + h / 2; y < hi.y(); y += h)
+      for (double x = lo.x() + h / 2; x < hi.x(); x += h) free_cells += free_at(Vec2(x, y));
+  }
   const double area = static_cast<double>(free_cells) * h * h;
+  if (g.count == 0) return;
+  if (area <= 0) throw Error(g.path + ".spawn: the region has no walkable area (it lies inside walls, obstacles or outside the domain)");
   const long count = g.count >= 0 ? g.count : std::lround(g.density * area);
   if (count == 0) return;
-  if (area <= 0) throw Error(g.path + ".spawn: the region has no walkable area (it lies inside walls, obstacles or outside the domain)");
   const double densest = 2 / (std::sqrt(3.0) * 4 * r * r);
   const double want = static_cast<double>(count) / area;
   if (want > densest)
@@ -191,8 +227,8 @@ void Simulation::place_group(size_t gi) {
     const double row = a * std::sqrt(3.0) / 2;
     Vec2 off(rng_.uniform() * a, rng_.uniform() * row);
     int k = 0;
-    for (double y = g.region.lo.y() + off.y() - row; y <= g.region.hi.y(); y += row, ++k)
-      for (double x = g.region.lo.x() + off.x() - a + (k % 2) * a / 2; x <= g.region.hi.x(); x += a) {
+    for (double y = lo.y() + off.y() - row; y <= hi.y(); y += row, ++k)
+      for (double x = lo.x() + off.x() - a + (k % 2) * a / 2; x <= hi.x(); x += a) {
         Vec2 p(x, y);
         if (free_at(p) && !overlaps(p, 2 * r)) pts.push_back(p);
       }
@@ -257,6 +293,13 @@ void Simulation::spawn_sources() {
       ++spawned_;
     }
   }
+}
+
+void Simulation::init_neighbours(double reach) {
+  // Bound the number of cells (huge venues): larger cells cost time, not correctness.
+  const Vec2 ext = scenario_.geo.hi - scenario_.geo.lo;
+  neighbours_.init(scenario_.geo, std::max(reach, std::sqrt(ext.x() * ext.y() / 2e7)));
+  neighbours_.range = reach;
 }
 
 void Simulation::prepare_derived() {

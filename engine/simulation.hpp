@@ -60,7 +60,8 @@ class Simulation {
   void spawn_sources();
   void retire_at_exits();
   void check_finite();
-  void prepare_derived();  // drive + traction on the current state, so pressure is defined
+  void prepare_derived();
+  void init_neighbours(double reach);  // drive + traction on the current state, so pressure is defined
   AgentDef agent_template(const GroupDef& g, int group_index) const;
 
   ScenarioDef scenario_;
@@ -80,6 +81,7 @@ class Simulation {
   Rng rng_;
   long steps_ = 0;
   long spawned_ = 0;
+  double max_radius_ = 0, max_comfort_ = 0;  // over agents added so far (for the cell lists)
 };
 
 }  // namespace crowdmpm

@@ -67,7 +67,8 @@ TractionNet TractionNet::parse(const JsonReader& r) {
   r.allow_only({"constant", "inputs", "layers", "output"});
   TractionNet net;
   if (r.has("constant")) {
-    if (r.has("layers")) r.fail("give either \"constant\" or \"layers\", not both");
+    if (r.has("layers") || r.has("inputs") || r.has("output"))
+      r.fail("a constant gain takes no \"layers\", \"inputs\" or \"output\": give either {\"constant\": K} or a network");
     net.constant = r.non_negative("constant", std::nullopt);
     return net;
   }
