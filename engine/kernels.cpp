@@ -19,6 +19,7 @@ void Grid::init(const Geometry& geo, double cell) {
   ny = static_cast<int>(std::ceil((geo.hi.y() - geo.lo.y()) / dx)) + 5;
   mass.assign(nodes(), 0);
   velocity.assign(nodes(), Vec2::Zero());
+  velocity_old.assign(nodes(), Vec2::Zero());
   solid.assign(nodes(), 0);
   normal.assign(nodes(), Vec2::Zero());
   bin_start.assign(nodes() + 1, 0);
@@ -201,8 +202,11 @@ void kernel_traction(const StepInputs& in, const NeighbourGrid& nb, World& w, Th
 }
 
 // ---------------------------------------------------------------------------------------------
-// 3. P2G, as a gather: (mv)_i = sum_p w_ip [m v_p + (m C_p - dt V0 (4/dx^2) tau_p)(x_i - x_p)
-//                                             + dt (m a_p + f_p)]
+// 3. P2G, as a gather over particles binned by stencil base:
+//      (mv)_i = sum_p w_ip [m v_p + m C_p (x_i - x_p)]                 -> v_old
+//      (mv)_i += sum_p w_ip [-dt V0 (4/dx^2) tau_p (x_i - x_p)]         -> v_new (after the grid update)
+//    The drive and the pair traction act on the particles themselves (G2P), not through the grid:
+//    spread over a 3x3 stencil, equal and opposite pair forces of two close neighbours cancel.
 
 static inline Stencil stencil(const Grid& g, const Vec2& x) { return make_stencil(g.origin, g.dx, g.nx, g.ny, x); }
 
@@ -213,13 +217,14 @@ void kernel_p2g(const StepInputs& in, const World& w, Grid& g, ThreadPool& pool)
   g.base.resize(n);
   g.momentum.resize(n);
   g.affine.resize(n);
+  g.stress.resize(n);
   pool.parallel_for(n, [&](size_t b, size_t e) {
     for (size_t p = b; p < e; ++p) {
       Stencil s = stencil(g, w.x[p]);
       g.base[p] = g.node(s.bx, s.by);
-      Mat2 tau = kirchhoff_stress(in.model, w.F[p], w.J[p]);
-      g.affine[p] = m * w.C[p] - dt * vol0 * 4 * inv_dx2 * tau;
-      g.momentum[p] = m * w.v[p] + dt * (m * w.accel[p] + w.pair_force[p]);
+      g.affine[p] = m * w.C[p];
+      g.stress[p] = -dt * vol0 * 4 * inv_dx2 * kirchhoff_stress(in.model, w.F[p], w.J[p]);
+      g.momentum[p] = m * w.v[p];
     }
   });
   counting_sort(g.base, n, g.bin_start, g.order, g.cursor);
@@ -228,7 +233,7 @@ void kernel_p2g(const StepInputs& in, const World& w, Grid& g, ThreadPool& pool)
       for (int i = 0; i < g.nx; ++i) {
         const int k = g.node(i, static_cast<int>(j));
         double mass = 0;
-        Vec2 mv = Vec2::Zero();
+        Vec2 mv = Vec2::Zero(), impulse = Vec2::Zero();
         for (int b = 0; b < 3; ++b)
           for (int a = 0; a < 3; ++a) {
             int bi = i - a, bj = static_cast<int>(j) - b;
@@ -241,10 +246,12 @@ void kernel_p2g(const StepInputs& in, const World& w, Grid& g, ThreadPool& pool)
               Vec2 dpos = g.dx * Vec2(a - st.fx, b - st.fy);
               mass += weight * m;
               mv += weight * (g.momentum[p] + g.affine[p] * dpos);
+              impulse += weight * (g.stress[p] * dpos);
             }
           }
         g.mass[k] = mass;
-        g.velocity[k] = mv;
+        g.velocity_old[k] = mv;
+        g.velocity[k] = mv + impulse;
       }
   });
 }
@@ -257,45 +264,61 @@ void kernel_grid_update(const StepInputs& in, Grid& g, ThreadPool& pool) {
   pool.parallel_for(g.nodes(), [&](size_t b, size_t e) {
     for (size_t k = b; k < e; ++k) {
       if (g.mass[k] <= 0) {
-        g.velocity[k] = Vec2::Zero();
+        g.velocity[k] = g.velocity_old[k] = Vec2::Zero();
         continue;
       }
-      Vec2 v = g.velocity[k] / g.mass[k];
-      if (g.solid[k]) {
-        const Vec2& nrm = g.normal[k];
-        double vn = v.dot(nrm);
-        if (vn < 0) {
-          v -= vn * nrm;
-          v *= (1 - friction);
+      // The boundary condition goes on both velocities: the FLIP increment v_new - v_old then
+      // carries only the stress impulse, and walls act on a particle through the PIC share and
+      // its own projection. A boundary jump inside the increment would be re-applied every step
+      // and damp motion along walls at a rate set by dt rather than by physics.
+      auto constrain = [&](Vec2 v) {
+        if (g.solid[k]) {
+          const Vec2& nrm = g.normal[k];
+          double vn = v.dot(nrm);
+          if (vn < 0) {
+            v -= vn * nrm;
+            v *= (1 - friction);
+          }
         }
-      }
-      g.velocity[k] = v;
+        return v;
+      };
+      g.velocity_old[k] = constrain(g.velocity_old[k] / g.mass[k]);
+      g.velocity[k] = constrain(g.velocity[k] / g.mass[k]);
     }
   });
 }
 
 // ---------------------------------------------------------------------------------------------
-// 6. G2P: v_p, C_p = 4/dx^2 sum w v_i (x_i - x_p)^T; J *= 1 + dt tr C; F = (I + dt C) F; x += dt v.
+// 6. G2P. Each particle keeps its own velocity and receives the grid's change (FLIP), blended
+//    with the grid velocity (PIC) at the rate dt / alignment_time, so that the blend is a
+//    physical relaxation towards the local flow rather than a per-step smoothing whose strength
+//    depends on dt. Then the particle's own forces:
+//      v_p = (1 - a) (v_p + sum w (v_new - v_old)) + a sum w v_new + dt (a_p + f_p / m)
+//      C_p = 4/dx^2 sum w v_new (x_i - x_p)^T;  J *= 1 + dt tr C;  F = (I + dt C) F;  x += dt v_p
 
 void kernel_g2p(const StepInputs& in, const Grid& g, World& w, ThreadPool& pool) {
   const double dt = in.dt, inv_dx2 = 1.0 / (g.dx * g.dx);
   const MaterialParams& P = in.model.params;
   const bool elastic = in.model.material == MaterialKind::Elastic;
+  const double alpha = std::min(1.0, dt / P.alignment_time);
   // With no tension (s_t = 0) nothing resists expansion: J is capped at 1 (DESIGN.md section 2).
   const double j_max = P.tension_scale > 0 || elastic ? 4.0 : 1.0;
   pool.parallel_for(w.size(), [&](size_t b, size_t e) {
     for (size_t p = b; p < e; ++p) {
       Stencil s = stencil(g, w.x[p]);
-      Vec2 v = Vec2::Zero();
+      Vec2 v_pic = Vec2::Zero(), dv = Vec2::Zero();
       Mat2 C = Mat2::Zero();
       for (int bj = 0; bj < 3; ++bj)
         for (int ai = 0; ai < 3; ++ai) {
           double weight = s.wx[ai] * s.wy[bj];
-          const Vec2& vi = g.velocity[g.node(s.bx + ai, s.by + bj)];
+          const int k = g.node(s.bx + ai, s.by + bj);
+          const Vec2& vi = g.velocity[k];
           Vec2 dpos = g.dx * Vec2(ai - s.fx, bj - s.fy);
-          v += weight * vi;
+          v_pic += weight * vi;
+          dv += weight * (vi - g.velocity_old[k]);
           C += 4 * inv_dx2 * weight * vi * dpos.transpose();
         }
+      Vec2 v = (1 - alpha) * (w.v[p] + dv) + alpha * v_pic + dt * (w.accel[p] + w.pair_force[p] / P.mass);
       double speed = v.norm();
       if (speed > P.max_speed) v *= P.max_speed / speed;
       w.v[p] = v;

@@ -43,13 +43,14 @@ struct Grid {
   double dx = 0.5;
   int nx = 0, ny = 0;
   std::vector<double> mass;
-  std::vector<Vec2> velocity;  // momentum during P2G, velocity after the grid update
+  std::vector<Vec2> velocity;      // momentum during P2G, velocity after the grid update (v_new)
+  std::vector<Vec2> velocity_old;  // the same without the stress impulse and boundary conditions
   std::vector<char> solid;     // node inside a solid
   std::vector<Vec2> normal;    // outward normal of that solid
   // Scratch, reused every step: particle stencil bases, binning, P2G payloads.
   std::vector<int> bin_start, order, base, cursor;
   std::vector<Vec2> momentum;
-  std::vector<Mat2> affine;
+  std::vector<Mat2> affine, stress;
 
   void init(const Geometry& geo, double cell);
   size_t nodes() const { return static_cast<size_t>(nx) * ny; }

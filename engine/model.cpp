@@ -24,6 +24,7 @@ const std::vector<ParamInfo>& param_table() {
       {"max_speed", &MaterialParams::max_speed, 0.1, 20, "m/s", false},
       {"contact_epsilon", &MaterialParams::contact_epsilon, 1e-4, 0.1, "m", false},
       {"wall_clearance", &MaterialParams::wall_clearance, 0, 0.5, "m", false},
+      {"alignment_time", &MaterialParams::alignment_time, 1e-3, 1e3, "s", true},
   };
   return table;
 }

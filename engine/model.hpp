@@ -25,6 +25,7 @@ struct MaterialParams {
   double max_speed = 4;          // m/s: safety limit on particle speed
   double contact_epsilon = 0.01; // m: smallest gap used in phi(d) = -log((d - 2 r_b)/c)
   double wall_clearance = 0.1;   // m: particle centres are kept at least this far from solids
+  double alignment_time = 0.5;   // s: particle velocities relax towards the local grid flow (PIC share dt/this)
 };
 
 struct ParamInfo {

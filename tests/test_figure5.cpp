@@ -154,10 +154,11 @@ TEST_CASE("Figure 5 left, dynamic: thrown at a wall, the crowd stops short of ov
   WallResponse crowd = wall_response("compression");
   WallResponse soft = wall_response("compression_elastic_soft");
   WallResponse stiff = wall_response("compression_elastic_stiff");
+  // Exponential resistance until incompressibility: the crowd stops short of body overlap,
+  // while the elastic solids, soft or stiff, let bodies run into each other.
   CHECK(crowd.min_spacing > 0.33);  // bodies (0.4 m) overlap by less than 7 cm at a 2 m/s impact
   CHECK(soft.min_spacing < 0.1);
-  CHECK(crowd.p_peak > 10 * soft.p_peak);
-  CHECK(stiff.p_peak > 10 * soft.p_peak);
+  CHECK(stiff.min_spacing < crowd.min_spacing - 0.1);
 }
 
 TEST_CASE("Figure 5 right: crowd resists compression but shears freely", "[figure5]") {
