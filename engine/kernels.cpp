@@ -96,6 +96,14 @@ static Vec2 desired_direction(const StepInputs& in, const Behaviour& b, const Ve
       if (b.target && b.target->contains(x)) return Vec2::Zero();
       return in.navs[b.nav].direction(x);
     case Behaviour::Kind::Orbit: {
+      if (b.nav >= 0) {
+        // Around a structure: along the level sets of the travel distance to it (the tangent of
+        // -grad T turned by 90 degrees), plus an inward share towards it.
+        Vec2 d = in.navs[b.nav].direction(x);
+        if (d.squaredNorm() == 0) return Vec2::Zero();
+        Vec2 e = b.sign * Vec2(d.y(), -d.x()) + b.inward * d;
+        return e.normalized();
+      }
       Vec2 r = x - b.point;
       double n = r.norm();
       if (n < 1e-9) return Vec2::Zero();

@@ -16,7 +16,7 @@ namespace crowdmpm {
 struct Behaviour {
   enum class Kind { None, Goal, Orbit, Attract };
   Kind kind = Kind::None;
-  int nav = -1;                  // Goal: index of the navigation field
+  int nav = -1;                  // Goal, Orbit around a structure: index of the navigation field
   const Shape* target = nullptr; // Goal: agents inside a (non-exit) goal stop
   Vec2 point = Vec2::Zero();     // Orbit: centre; Attract: the point
   double sign = 1;               // Orbit: +1 counter-clockwise, -1 clockwise

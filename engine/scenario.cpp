@@ -26,9 +26,12 @@ static BehaviourDef parse_behaviour(const JsonReader& r) {
     b.kind = BehaviourDef::Kind::Goal;
     b.target = r.string("target", "nearest_exit");
   } else if (type == "orbit") {
-    r.allow_only({"type", "center", "direction", "inward"});
+    r.allow_only({"type", "center", "around", "direction", "inward"});
     b.kind = BehaviourDef::Kind::Orbit;
-    b.point = r.vec2("center", std::nullopt);
+    if (r.has("center") == r.has("around"))
+      r.fail("orbit needs exactly one of \"center\" (a point) or \"around\" (the id of a goal or exit to circle)");
+    if (r.has("center")) b.point = r.vec2("center", std::nullopt);
+    else b.target = r.string("around", std::nullopt);
     b.sign = r.one_of("direction", {"ccw", "cw"}, "ccw") == "ccw" ? 1 : -1;
     b.inward = r.in_range("inward", -1, 1, 0.0);
   } else {
@@ -166,6 +169,8 @@ ScenarioDef ScenarioDef::parse(const json& j, const std::string& source, const s
   }
 
   auto check_target = [&](const BehaviourDef& b) {
+    if (b.kind == BehaviourDef::Kind::Orbit && !b.target.empty() && !s.geo.find_target(b.target))
+      throw Error(b.path + ".around: no exit or goal with id \"" + b.target + "\"");
     if (b.kind != BehaviourDef::Kind::Goal) return;
     if (b.target == "nearest_exit") {
       if (s.geo.exits.empty()) throw Error(b.path + ": behaviour goal \"nearest_exit\" needs at least one exit in geometry.exits");

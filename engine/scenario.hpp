@@ -15,7 +15,7 @@ namespace crowdmpm {
 struct BehaviourDef {
   enum class Kind { None, Goal, Orbit, Attract };
   Kind kind = Kind::None;
-  std::string target;  // Goal: exit or goal id, or "nearest_exit"
+  std::string target;  // Goal: exit or goal id, or "nearest_exit"; Orbit: structure to circle (or empty)
   Vec2 point = Vec2::Zero();
   double sign = 1, inward = 0, arrive_radius = 0.5;
   std::string path;  // JSON path, for messages

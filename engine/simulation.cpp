@@ -88,11 +88,11 @@ int Simulation::nav_for(const std::string& target) {
 void Simulation::build_behaviours() {
   // navs_ must not reallocate after behaviours point into it: build all fields first.
   for (const auto& g : scenario_.groups) {
-    if (g.behaviour.kind != BehaviourDef::Kind::Goal) continue;
+    if (g.behaviour.target.empty()) continue;
     try {
       nav_for(g.behaviour.target);
     } catch (const Error& e) {
-      throw Error(g.behaviour.path + ".target: " + e.what());
+      throw Error(g.behaviour.path + (g.behaviour.kind == BehaviourDef::Kind::Orbit ? ".around: " : ".target: ") + e.what());
     }
   }
   behaviours_.push_back(Behaviour{});  // 0: none
@@ -112,6 +112,7 @@ void Simulation::build_behaviours() {
       }
       case BehaviourDef::Kind::Orbit:
         b.kind = Behaviour::Kind::Orbit;
+        if (!d.target.empty()) b.nav = nav_for(d.target);
         b.point = d.point;
         b.sign = d.sign;
         b.inward = d.inward;

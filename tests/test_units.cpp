@@ -146,3 +146,19 @@ TEST_CASE("groups are placed at the density asked, without overlap, outside soli
   }
   CHECK(closest >= 0.4 - 1e-9);
 }
+
+TEST_CASE("orbit around a structure follows its contour counter-clockwise", "[units]") {
+  const char* text = R"({"format": "crowdmpm-scenario", "version": 1,
+    "domain": {"min": [-10, -10], "max": [10, 10]}, "time": {"duration": 1},
+    "geometry": {"obstacles": [{"id": "block", "rect": [-2, -2, 2, 2]}]},
+    "goals": [{"id": "block", "rect": [-2, -2, 2, 2]}],
+    "groups": [{"spawn": {"rect": [3, -1, 4, 1]}, "count": 1, "behaviour": {"type": "orbit", "around": "block", "direction": "ccw"}}]})";
+  ScenarioDef s = ScenarioDef::parse_text(text);
+  Simulation sim(s, Model::default_model(), 1);
+  Vec2 e = sim.world().heading[0];  // desired direction, computed at construction
+  CHECK(e.y() > 0.95);              // east of the block, counter-clockwise is +y
+  const char* both = R"({"format": "crowdmpm-scenario", "version": 1,
+    "domain": {"min": [0, 0], "max": [5, 5]}, "time": {"duration": 1},
+    "groups": [{"spawn": {"rect": [1, 1, 2, 2]}, "count": 1, "behaviour": {"type": "orbit", "around": "x", "center": [1, 1]}}]})";
+  CHECK_THROWS_WITH(ScenarioDef::parse_text(both), Catch::Contains("groups[0].behaviour: orbit needs exactly one of"));
+}
