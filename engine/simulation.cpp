@@ -15,13 +15,23 @@ uint64_t Rng::next() {
 
 double Rng::uniform() { return static_cast<double>(next() >> 11) * 0x1.0p-53; }
 
+static void check_time_step(const ScenarioDef& s, const Model& m, double dt) {
+  if (!(dt > 0 && dt <= 0.1)) throw Error(s.source + ": time.dt: must be in (0, 0.1] s, got " + format_number(dt));
+  if (dt * m.params.max_speed > 0.25 * s.cell_size)
+    throw Error(s.source + ": time.dt: " + format_number(dt) + " s is too large for domain.cell_size " +
+                format_number(s.cell_size) + " m: dt * max_speed (" + format_number(m.params.max_speed) +
+                " m/s) must be <= cell_size / 4");
+}
+
+void Simulation::set_time_step(double dt) {
+  check_time_step(scenario_, model_, dt);
+  scenario_.dt = dt;
+}
+
 Simulation::Simulation(const ScenarioDef& scenario, const Model& model, int threads)
     : scenario_(scenario), model_(model), pool_(threads), rng_(scenario.seed) {
   const MaterialParams& P = model_.params;
-  if (scenario_.dt * P.max_speed > 0.25 * scenario_.cell_size)
-    throw Error(scenario_.source + ": time.dt: " + format_number(scenario_.dt) +
-                " s is too large for domain.cell_size " + format_number(scenario_.cell_size) +
-                " m: dt * max_speed (" + format_number(P.max_speed) + " m/s) must be <= cell_size / 4");
+  check_time_step(scenario_, model_, scenario_.dt);
   grid_.init(scenario_.geo, scenario_.cell_size);
   try {
     build_behaviours();

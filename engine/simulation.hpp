@@ -32,6 +32,8 @@ class Simulation {
   Simulation(const ScenarioDef& scenario, const Model& model, int threads = 1);
 
   void step();  // advance by dt
+  // Changes dt; checks (0, 0.1] and dt * max_speed <= cell_size / 4. Throws Error otherwise.
+  void set_time_step(double dt);
   void run_steps(long n);
   bool finished() const;
 

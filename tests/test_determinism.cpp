@@ -6,11 +6,11 @@
 
 using namespace crowdmpm;
 
+#include "expected_hashes.h"
+
 namespace {
-constexpr long kSteps = 400;
-// FNV-1a of (id, x, y, vx, vy) of every live agent in id order after kSteps steps of drill.json.
-// Changing the physics changes it on purpose: update it in the same commit, saying why.
-constexpr uint64_t kExpectedDrillHash = 0x103cc3513c9c0f5aull;
+constexpr long kSteps = CMPM_EXPECTED_DRILL_STEPS;
+constexpr uint64_t kExpectedDrillHash = CMPM_EXPECTED_DRILL_HASH;
 
 uint64_t drill_hash(int threads) {
   ScenarioDef s = ScenarioDef::load(test::scenario_path("drill"));

@@ -1,0 +1,394 @@
+// The C ABI over the engine: a registry of worlds addressed by (index, generation), a guard at
+// every entry point that turns any C++ exception into a status and a thread-local message.
+#include "crowdmpm/crowdmpm.h"
+
+#include <cmath>
+#include <cstring>
+#include <memory>
+#include <mutex>
+#include <new>
+#include <string>
+#include <vector>
+
+#include "engine/fields.hpp"
+#include "engine/simulation.hpp"
+
+using namespace crowdmpm;
+
+namespace {
+
+constexpr int32_t kCookie = 0x434d504d;  // "CMPM"
+
+thread_local std::string g_last_error;
+
+struct ApiError {
+  cmpm_Status status;
+  std::string message;
+};
+
+struct Slot {
+  std::unique_ptr<Simulation> sim;
+  uint32_t generation = 1;
+};
+
+std::mutex g_registry_mutex;
+std::vector<Slot> g_slots;
+
+[[noreturn]] void fail(cmpm_Status s, const std::string& msg) { throw ApiError{s, msg}; }
+
+template <class F>
+cmpm_Status guard(const char* fn, cmpm_Status input_status, F&& f) {
+  try {
+    f();
+    g_last_error.clear();
+    return CMPM_OK;
+  } catch (const ApiError& e) {
+    g_last_error = std::string(fn) + ": " + e.message;
+    return e.status;
+  } catch (const Error& e) {
+    g_last_error = std::string(fn) + ": " + e.what();
+    return input_status;
+  } catch (const std::bad_alloc&) {
+    g_last_error = std::string(fn) + ": out of memory";
+    return CMPM_ERROR_INTERNAL;
+  } catch (const std::exception& e) {
+    g_last_error = std::string(fn) + ": internal error: " + e.what();
+    return CMPM_ERROR_INTERNAL;
+  } catch (...) {
+    g_last_error = std::string(fn) + ": internal error (unknown exception)";
+    return CMPM_ERROR_INTERNAL;
+  }
+}
+
+std::string describe(cmpm_WorldId w) {
+  return "world {index1 " + std::to_string(w.index1) + ", generation " + std::to_string(w.generation) + "}";
+}
+
+Simulation& lookup(cmpm_WorldId w) {
+  if (w.index1 == 0) fail(CMPM_ERROR_NULL_HANDLE, "null world id (zeroed cmpm_WorldId)");
+  std::lock_guard<std::mutex> lock(g_registry_mutex);
+  if (w.index1 > g_slots.size() || !g_slots[w.index1 - 1].sim || g_slots[w.index1 - 1].generation != w.generation)
+    fail(CMPM_ERROR_STALE_HANDLE, describe(w) + " does not exist or was destroyed");
+  return *g_slots[w.index1 - 1].sim;
+}
+
+template <class T>
+void require(const T* p, const char* name) {
+  if (!p) fail(CMPM_ERROR_INVALID_ARGUMENT, std::string(name) + " is NULL");
+}
+
+void check_capacity(int32_t capacity, size_t needed, int32_t* out_written, const char* what) {
+  require(out_written, "out_written");
+  *out_written = 0;
+  if (capacity < 0) fail(CMPM_ERROR_INVALID_ARGUMENT, std::string("capacity must be >= 0, got ") + std::to_string(capacity));
+  if (static_cast<size_t>(capacity) < needed)
+    fail(CMPM_ERROR_BUFFER_TOO_SMALL, std::string(what) + ": buffer holds " + std::to_string(capacity) + " but " +
+                                          std::to_string(needed) + " are needed");
+}
+
+long agent_index(const Simulation& sim, cmpm_AgentId a) {
+  if (a.value == 0) fail(CMPM_ERROR_NULL_HANDLE, "null agent id (0)");
+  long i = sim.world().index_of(a.value);
+  if (i < 0)
+    fail(a.value < sim.world().next_id() ? CMPM_ERROR_STALE_HANDLE : CMPM_ERROR_INVALID_ARGUMENT,
+         "agent " + std::to_string(a.value) + (a.value < sim.world().next_id() ? " was removed or has left through an exit" : " does not exist"));
+  return i;
+}
+
+int behaviour_for(Simulation& sim, const char* target, int32_t group) {
+  if (target) return sim.behaviour_for_target(target);
+  const auto& groups = sim.scenario().groups;
+  if (group < 0 || group >= static_cast<int32_t>(groups.size()))
+    fail(CMPM_ERROR_INVALID_ARGUMENT, "agent group " + std::to_string(group) + " out of range (the scenario has " +
+                                          std::to_string(groups.size()) + " groups and sources); or give a target");
+  return group + 1;  // behaviour 0 is "none"; group g's behaviour is g + 1
+}
+
+}  // namespace
+
+extern "C" {
+
+#define CMPM_STR2(x) #x
+#define CMPM_STR(x) CMPM_STR2(x)
+
+const char* cmpm_GetVersion(void) {
+  return CMPM_STR(CMPM_VERSION_MAJOR) "." CMPM_STR(CMPM_VERSION_MINOR) "." CMPM_STR(CMPM_VERSION_PATCH);
+}
+
+int32_t cmpm_GetAbiVersion(void) { return CMPM_ABI_VERSION; }
+
+const char* cmpm_GetLastError(void) { return g_last_error.c_str(); }
+
+cmpm_WorldDef cmpm_DefaultWorldDef(void) {
+  cmpm_WorldDef d;
+  std::memset(&d, 0, sizeof d);
+  d.threads = 1;
+  d.internal_cookie = kCookie;
+  return d;
+}
+
+cmpm_AgentDef cmpm_DefaultAgentDef(void) {
+  cmpm_AgentDef d;
+  std::memset(&d, 0, sizeof d);
+  d.body_radius = -1;  // the model's
+  d.comfort_distance = -1;
+  d.desired_speed = 1.3;
+  d.internal_cookie = kCookie;
+  return d;
+}
+
+cmpm_Status cmpm_CreateWorld(const cmpm_WorldDef* def, cmpm_WorldId* out_world) {
+  return guard("cmpm_CreateWorld", CMPM_ERROR_INVALID_INPUT, [&] {
+    require(def, "def");
+    require(out_world, "out_world");
+    *out_world = cmpm_WorldId{0, 0};
+    if (def->internal_cookie != kCookie)
+      fail(CMPM_ERROR_UNINITIALIZED_DEF, "the cmpm_WorldDef was not made by cmpm_DefaultWorldDef()");
+    if ((def->scenario_json != nullptr) == (def->scenario_path != nullptr))
+      fail(CMPM_ERROR_INVALID_ARGUMENT, "give exactly one of scenario_json or scenario_path");
+    if (def->model_json && def->model_path) fail(CMPM_ERROR_INVALID_ARGUMENT, "give at most one of model_json or model_path");
+    if (def->threads < 1 || def->threads > 256)
+      fail(CMPM_ERROR_INVALID_ARGUMENT, "threads must be in [1, 256], got " + std::to_string(def->threads));
+    ScenarioDef s = def->scenario_path ? ScenarioDef::load(def->scenario_path) : ScenarioDef::parse_text(def->scenario_json);
+    Model m = def->model_path ? Model::load(def->model_path)
+              : def->model_json ? Model::parse(JsonReader(parse_json_text(def->model_json, "<model>"), ""), "<model>")
+              : s.model ? *s.model : Model::default_model();
+    auto sim = std::make_unique<Simulation>(s, m, def->threads);
+    std::lock_guard<std::mutex> lock(g_registry_mutex);
+    size_t i = 0;
+    while (i < g_slots.size() && g_slots[i].sim) ++i;
+    if (i == g_slots.size()) g_slots.emplace_back();
+    g_slots[i].sim = std::move(sim);
+    *out_world = cmpm_WorldId{static_cast<uint32_t>(i + 1), g_slots[i].generation};
+  });
+}
+
+cmpm_Status cmpm_DestroyWorld(cmpm_WorldId world) {
+  return guard("cmpm_DestroyWorld", CMPM_ERROR_INVALID_ARGUMENT, [&] {
+    lookup(world);
+    std::unique_ptr<Simulation> doomed;
+    {
+      std::lock_guard<std::mutex> lock(g_registry_mutex);
+      Slot& s = g_slots[world.index1 - 1];
+      doomed = std::move(s.sim);
+      ++s.generation;
+    }
+  });
+}
+
+int32_t cmpm_World_IsValid(cmpm_WorldId world) {
+  if (world.index1 == 0) return 0;
+  std::lock_guard<std::mutex> lock(g_registry_mutex);
+  return world.index1 <= g_slots.size() && g_slots[world.index1 - 1].sim && g_slots[world.index1 - 1].generation == world.generation;
+}
+
+cmpm_Status cmpm_World_Step(cmpm_WorldId world, int32_t steps) {
+  return guard("cmpm_World_Step", CMPM_ERROR_SIMULATION, [&] {
+    Simulation& sim = lookup(world);
+    if (steps < 0 || steps > 10000000)
+      fail(CMPM_ERROR_INVALID_ARGUMENT, "steps must be in [0, 10000000], got " + std::to_string(steps));
+    sim.run_steps(steps);
+  });
+}
+
+cmpm_Status cmpm_World_SetTimeStep(cmpm_WorldId world, double dt) {
+  return guard("cmpm_World_SetTimeStep", CMPM_ERROR_INVALID_ARGUMENT, [&] { lookup(world).set_time_step(dt); });
+}
+
+cmpm_Status cmpm_World_GetTimeStep(cmpm_WorldId world, double* out_dt) {
+  return guard("cmpm_World_GetTimeStep", CMPM_ERROR_INVALID_ARGUMENT, [&] {
+    require(out_dt, "out_dt");
+    *out_dt = lookup(world).scenario().dt;
+  });
+}
+
+cmpm_Status cmpm_World_GetTime(cmpm_WorldId world, double* out_seconds) {
+  return guard("cmpm_World_GetTime", CMPM_ERROR_INVALID_ARGUMENT, [&] {
+    require(out_seconds, "out_seconds");
+    *out_seconds = lookup(world).time();
+  });
+}
+
+cmpm_Status cmpm_World_GetStateHash(cmpm_WorldId world, uint64_t* out_hash) {
+  return guard("cmpm_World_GetStateHash", CMPM_ERROR_INVALID_ARGUMENT, [&] {
+    require(out_hash, "out_hash");
+    *out_hash = lookup(world).world().state_hash();
+  });
+}
+
+cmpm_Status cmpm_World_GetAgentCount(cmpm_WorldId world, int32_t* out_count) {
+  return guard("cmpm_World_GetAgentCount", CMPM_ERROR_INVALID_ARGUMENT, [&] {
+    require(out_count, "out_count");
+    *out_count = static_cast<int32_t>(lookup(world).world().size());
+  });
+}
+
+cmpm_Status cmpm_World_GetExitedCount(cmpm_WorldId world, int32_t* out_count) {
+  return guard("cmpm_World_GetExitedCount", CMPM_ERROR_INVALID_ARGUMENT, [&] {
+    require(out_count, "out_count");
+    *out_count = static_cast<int32_t>(lookup(world).exit_events().size());
+  });
+}
+
+cmpm_Status cmpm_World_GetAgentIds(cmpm_WorldId world, cmpm_AgentId* out, int32_t capacity, int32_t* out_written) {
+  return guard("cmpm_World_GetAgentIds", CMPM_ERROR_INVALID_ARGUMENT, [&] {
+    const World& w = lookup(world).world();
+    check_capacity(capacity, w.size(), out_written, "agent ids");
+    if (w.size()) require(out, "out");
+    for (size_t p = 0; p < w.size(); ++p) out[p].value = w.id[p];
+    *out_written = static_cast<int32_t>(w.size());
+  });
+}
+
+static cmpm_Status read_vec2(const char* fn, cmpm_WorldId world, double* out, int32_t capacity, int32_t* out_written,
+                             bool velocity) {
+  return guard(fn, CMPM_ERROR_INVALID_ARGUMENT, [&] {
+    const World& w = lookup(world).world();
+    check_capacity(capacity, w.size(), out_written, velocity ? "velocities" : "positions");
+    if (w.size()) require(out, "out");
+    const std::vector<Vec2>& src = velocity ? w.v : w.x;
+    for (size_t p = 0; p < w.size(); ++p) {
+      out[2 * p] = src[p].x();
+      out[2 * p + 1] = src[p].y();
+    }
+    *out_written = static_cast<int32_t>(w.size());
+  });
+}
+
+cmpm_Status cmpm_World_GetPositions(cmpm_WorldId world, double* out_xy, int32_t capacity, int32_t* out_written) {
+  return read_vec2("cmpm_World_GetPositions", world, out_xy, capacity, out_written, false);
+}
+
+cmpm_Status cmpm_World_GetVelocities(cmpm_WorldId world, double* out_vxy, int32_t capacity, int32_t* out_written) {
+  return read_vec2("cmpm_World_GetVelocities", world, out_vxy, capacity, out_written, true);
+}
+
+cmpm_Status cmpm_World_GetPressures(cmpm_WorldId world, double* out, int32_t capacity, int32_t* out_written) {
+  return guard("cmpm_World_GetPressures", CMPM_ERROR_INVALID_ARGUMENT, [&] {
+    const World& w = lookup(world).world();
+    check_capacity(capacity, w.size(), out_written, "pressures");
+    if (w.size()) require(out, "out");
+    for (size_t p = 0; p < w.size(); ++p) out[p] = w.pressure[p];
+    *out_written = static_cast<int32_t>(w.size());
+  });
+}
+
+cmpm_Status cmpm_World_GetFieldShape(cmpm_WorldId world, int32_t* out_nx, int32_t* out_ny, double* out_origin_x,
+                                     double* out_origin_y, double* out_cell) {
+  return guard("cmpm_World_GetFieldShape", CMPM_ERROR_INVALID_ARGUMENT, [&] {
+    const Grid& g = lookup(world).grid();
+    require(out_nx, "out_nx");
+    require(out_ny, "out_ny");
+    *out_nx = g.nx;
+    *out_ny = g.ny;
+    if (out_origin_x) *out_origin_x = g.origin.x();
+    if (out_origin_y) *out_origin_y = g.origin.y();
+    if (out_cell) *out_cell = g.dx;
+  });
+}
+
+cmpm_Status cmpm_World_GetField(cmpm_WorldId world, cmpm_Field field, double* out, int32_t capacity, int32_t* out_written) {
+  return guard("cmpm_World_GetField", CMPM_ERROR_INVALID_ARGUMENT, [&] {
+    const Simulation& sim = lookup(world);
+    if (field != CMPM_FIELD_DENSITY && field != CMPM_FIELD_PRESSURE && field != CMPM_FIELD_VELOCITY)
+      fail(CMPM_ERROR_INVALID_ARGUMENT, "unknown field " + std::to_string(static_cast<int>(field)));
+    const size_t n = sim.grid().nodes() * (field == CMPM_FIELD_VELOCITY ? 2 : 1);
+    check_capacity(capacity, n, out_written, "field");
+    require(out, "out");
+    FieldFrame f = compute_fields(sim.world(), sim.grid());
+    for (size_t k = 0; k < sim.grid().nodes(); ++k) {
+      if (field == CMPM_FIELD_DENSITY) out[k] = f.density[k];
+      else if (field == CMPM_FIELD_PRESSURE) out[k] = f.pressure[k];
+      else {
+        out[2 * k] = f.velocity[k].x();
+        out[2 * k + 1] = f.velocity[k].y();
+      }
+    }
+    *out_written = static_cast<int32_t>(n);
+  });
+}
+
+cmpm_Status cmpm_World_AddAgent(cmpm_WorldId world, const cmpm_AgentDef* def, cmpm_AgentId* out_agent) {
+  return guard("cmpm_World_AddAgent", CMPM_ERROR_INVALID_ARGUMENT, [&] {
+    Simulation& sim = lookup(world);
+    require(def, "def");
+    require(out_agent, "out_agent");
+    out_agent->value = 0;
+    if (def->internal_cookie != kCookie)
+      fail(CMPM_ERROR_UNINITIALIZED_DEF, "the cmpm_AgentDef was not made by cmpm_DefaultAgentDef()");
+    AgentDef a;
+    a.position = Vec2(def->x, def->y);
+    a.velocity = Vec2(def->vx, def->vy);
+    a.body_radius = def->body_radius < 0 ? sim.model().params.body_radius : def->body_radius;
+    a.comfort_distance = def->comfort_distance < 0 ? sim.model().params.comfort_distance : def->comfort_distance;
+    a.desired_speed = def->desired_speed;
+    a.behaviour = behaviour_for(sim, def->target, def->group);
+    a.group = def->target ? std::max(0, def->group) : def->group;
+    out_agent->value = sim.add_agent(a);
+  });
+}
+
+cmpm_Status cmpm_World_RemoveAgent(cmpm_WorldId world, cmpm_AgentId agent) {
+  return guard("cmpm_World_RemoveAgent", CMPM_ERROR_INVALID_ARGUMENT, [&] {
+    Simulation& sim = lookup(world);
+    sim.world().remove_at(static_cast<size_t>(agent_index(sim, agent)));
+  });
+}
+
+cmpm_Status cmpm_World_SetAgentTarget(cmpm_WorldId world, cmpm_AgentId agent, const char* target) {
+  return guard("cmpm_World_SetAgentTarget", CMPM_ERROR_INVALID_ARGUMENT, [&] {
+    Simulation& sim = lookup(world);
+    long i = agent_index(sim, agent);
+    require(target, "target");
+    sim.world().behaviour[static_cast<size_t>(i)] = sim.behaviour_for_target(target);
+  });
+}
+
+cmpm_Status cmpm_World_GetAgentState(cmpm_WorldId world, cmpm_AgentId agent, double* out_x, double* out_y, double* out_vx,
+                                     double* out_vy) {
+  return guard("cmpm_World_GetAgentState", CMPM_ERROR_INVALID_ARGUMENT, [&] {
+    const Simulation& sim = lookup(world);
+    size_t i = static_cast<size_t>(agent_index(sim, agent));
+    if (out_x) *out_x = sim.world().x[i].x();
+    if (out_y) *out_y = sim.world().x[i].y();
+    if (out_vx) *out_vx = sim.world().v[i].x();
+    if (out_vy) *out_vy = sim.world().v[i].y();
+  });
+}
+
+cmpm_Status cmpm_World_GetParameter(cmpm_WorldId world, const char* name, double* out_value) {
+  return guard("cmpm_World_GetParameter", CMPM_ERROR_INVALID_ARGUMENT, [&] {
+    const Simulation& sim = lookup(world);
+    require(name, "name");
+    require(out_value, "out_value");
+    *out_value = sim.model().get(name);
+  });
+}
+
+cmpm_Status cmpm_World_SetParameter(cmpm_WorldId world, const char* name, double value) {
+  return guard("cmpm_World_SetParameter", CMPM_ERROR_INVALID_ARGUMENT, [&] {
+    Simulation& sim = lookup(world);
+    require(name, "name");
+    if (std::strcmp(name, "body_radius") == 0 || std::strcmp(name, "comfort_distance") == 0 ||
+        std::strcmp(name, "rest_density") == 0 || std::strcmp(name, "mass") == 0)
+      fail(CMPM_ERROR_INVALID_ARGUMENT, std::string(name) + " is fixed once a world exists (it sizes agents and the grid)");
+    Model m = sim.model();
+    m.set(name, value);
+    if (sim.scenario().dt * m.params.max_speed > 0.25 * sim.scenario().cell_size)
+      fail(CMPM_ERROR_INVALID_ARGUMENT, "max_speed " + format_number(value) + " m/s is too large for dt and the cell size");
+    sim.mutable_model() = m;
+  });
+}
+
+cmpm_Status cmpm_World_LoadTraction(cmpm_WorldId world, const char* traction_json) {
+  return guard("cmpm_World_LoadTraction", CMPM_ERROR_INVALID_INPUT, [&] {
+    Simulation& sim = lookup(world);
+    require(traction_json, "traction_json");
+    if (!sim.model().has_traction())
+      fail(CMPM_ERROR_INVALID_ARGUMENT, std::string("the ") + material_name(sim.model().material) + " material has no traction network");
+    json j = parse_json_text(traction_json, "<traction>");
+    sim.mutable_model().traction = TractionNet::parse(JsonReader(j, "traction"));
+  });
+}
+
+}  // extern "C"

@@ -1,0 +1,156 @@
+/* CrowdMPM stable C ABI.
+ *
+ * Pure C (C99 and C++), one export macro, no C++ types or exceptions cross it. Every call that
+ * can fail returns a cmpm_Status; on failure a message saying what and where is available from
+ * cmpm_GetLastError() on the same thread. Handles are small value structs: a zeroed handle is
+ * null, and a destroyed world's handle is detected (generation count) rather than crashing.
+ *
+ * Units are SI: metres, seconds, persons/m^2, m/s. Buffers are owned by the caller; bulk reads
+ * fill them and report how many items they wrote, and fail with CMPM_ERROR_BUFFER_TOO_SMALL
+ * (writing nothing) if the capacity is short; query the count first.
+ *
+ * The number of functions does not depend on the number of materials or force terms: the
+ * material and its parameters are addressed by name, models and scenarios are JSON.
+ */
+#ifndef CROWDMPM_H
+#define CROWDMPM_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#define CMPM_VERSION_MAJOR 0
+#define CMPM_VERSION_MINOR 1
+#define CMPM_VERSION_PATCH 0
+/* Incremented whenever a struct layout or a function signature changes incompatibly. */
+#define CMPM_ABI_VERSION 1
+
+#if defined(_WIN32)
+#  if defined(CROWDMPM_BUILDING)
+#    define CMPM_API __declspec(dllexport)
+#  else
+#    define CMPM_API __declspec(dllimport)
+#  endif
+#else
+#  define CMPM_API __attribute__((visibility("default")))
+#endif
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef enum cmpm_Status {
+  CMPM_OK = 0,
+  CMPM_ERROR_NULL_HANDLE = 1,         /* a zeroed (null) world handle */
+  CMPM_ERROR_STALE_HANDLE = 2,        /* a destroyed world, or a removed agent */
+  CMPM_ERROR_INVALID_ARGUMENT = 3,    /* null pointer, value out of range, unknown name */
+  CMPM_ERROR_INVALID_INPUT = 4,       /* scenario or model JSON that does not parse or validate */
+  CMPM_ERROR_BUFFER_TOO_SMALL = 5,
+  CMPM_ERROR_UNINITIALIZED_DEF = 6,   /* a def struct not made by its cmpm_Default... function */
+  CMPM_ERROR_SIMULATION = 7,          /* the simulation became unstable (non-finite state) */
+  CMPM_ERROR_INTERNAL = 8
+} cmpm_Status;
+
+/* A world. index1 counts from 1 so that a zeroed id is null. */
+typedef struct cmpm_WorldId {
+  uint32_t index1;
+  uint32_t generation;
+} cmpm_WorldId;
+
+/* An agent of a world. Agent ids are never reused within a world, so the id of a removed agent
+ * stays stale forever (CMPM_ERROR_STALE_HANDLE) and never aliases a newer agent. 0 is null. */
+typedef struct cmpm_AgentId {
+  uint64_t value;
+} cmpm_AgentId;
+
+typedef enum cmpm_Field {
+  CMPM_FIELD_DENSITY = 0,   /* persons/m^2, one value per grid node */
+  CMPM_FIELD_PRESSURE = 1,  /* model stress units, one value per node */
+  CMPM_FIELD_VELOCITY = 2   /* m/s, two values (vx, vy) per node */
+} cmpm_Field;
+
+/* World definition. Give the scenario as JSON text or as a file path (one of them), and
+ * optionally a model as JSON text or path (otherwise the scenario's model, else the default).
+ * Strings are copied during cmpm_CreateWorld; the caller keeps ownership. */
+typedef struct cmpm_WorldDef {
+  const char* scenario_json;
+  const char* scenario_path;
+  const char* model_json;
+  const char* model_path;
+  int32_t threads;       /* worker threads, 1..256; results do not depend on it. Default 1. */
+  int32_t internal_cookie;  /* set by cmpm_DefaultWorldDef; do not touch */
+} cmpm_WorldDef;
+
+/* One agent. target: id of an exit or goal to walk to, or "nearest_exit"; NULL gives the
+ * behaviour of group `group` (index into the scenario's groups then sources). */
+typedef struct cmpm_AgentDef {
+  double x, y;               /* position, m */
+  double vx, vy;             /* velocity, m/s */
+  double body_radius;        /* m, [0.05, 0.5]; default: the model's */
+  double comfort_distance;   /* m, [0.01, 2]; default: the model's */
+  double desired_speed;      /* m/s, [0, 12]; default 1.3 */
+  const char* target;
+  int32_t group;
+  int32_t internal_cookie;   /* set by cmpm_DefaultAgentDef; do not touch */
+} cmpm_AgentDef;
+
+/* Version "MAJOR.MINOR.PATCH" of the library actually loaded, and its ABI version. */
+CMPM_API const char* cmpm_GetVersion(void);
+CMPM_API int32_t cmpm_GetAbiVersion(void);
+
+/* The message of the last failed call on this thread ("" if none). Valid until the next call
+ * into the library on this thread. */
+CMPM_API const char* cmpm_GetLastError(void);
+
+CMPM_API cmpm_WorldDef cmpm_DefaultWorldDef(void);
+CMPM_API cmpm_AgentDef cmpm_DefaultAgentDef(void);
+
+/* Worlds. Creating places the scenario's groups; destroying invalidates the id. */
+CMPM_API cmpm_Status cmpm_CreateWorld(const cmpm_WorldDef* def, cmpm_WorldId* out_world);
+CMPM_API cmpm_Status cmpm_DestroyWorld(cmpm_WorldId world);
+CMPM_API int32_t cmpm_World_IsValid(cmpm_WorldId world);  /* 1 if it refers to a live world */
+
+/* Advance by `steps` steps of the scenario's dt (0 <= steps <= 10,000,000). */
+CMPM_API cmpm_Status cmpm_World_Step(cmpm_WorldId world, int32_t steps);
+/* Change the step length, s, in (0, 0.1] and at most cell_size / (4 max_speed). */
+CMPM_API cmpm_Status cmpm_World_SetTimeStep(cmpm_WorldId world, double dt);
+CMPM_API cmpm_Status cmpm_World_GetTimeStep(cmpm_WorldId world, double* out_dt);
+CMPM_API cmpm_Status cmpm_World_GetTime(cmpm_WorldId world, double* out_seconds);
+/* FNV-1a over (id, x, y, vx, vy) of every live agent in id order: equal across thread counts,
+ * compilers (same flags) and host languages for the same scenario and steps. */
+CMPM_API cmpm_Status cmpm_World_GetStateHash(cmpm_WorldId world, uint64_t* out_hash);
+CMPM_API cmpm_Status cmpm_World_GetAgentCount(cmpm_WorldId world, int32_t* out_count);
+/* Agents that have left through exits since the world was created. */
+CMPM_API cmpm_Status cmpm_World_GetExitedCount(cmpm_WorldId world, int32_t* out_count);
+
+/* Bulk reads of all live agents in a consistent order (the same order for every read between
+ * two steps). capacity is in agents; positions and velocities write 2 doubles per agent. */
+CMPM_API cmpm_Status cmpm_World_GetAgentIds(cmpm_WorldId world, cmpm_AgentId* out, int32_t capacity, int32_t* out_written);
+CMPM_API cmpm_Status cmpm_World_GetPositions(cmpm_WorldId world, double* out_xy, int32_t capacity, int32_t* out_written);
+CMPM_API cmpm_Status cmpm_World_GetVelocities(cmpm_WorldId world, double* out_vxy, int32_t capacity, int32_t* out_written);
+CMPM_API cmpm_Status cmpm_World_GetPressures(cmpm_WorldId world, double* out, int32_t capacity, int32_t* out_written);
+
+/* Grid fields of the current state. Node (i, j) is at origin + cell * (i, j); values are
+ * row-major (j slowest). capacity is in doubles (nx * ny, or 2 * nx * ny for velocity). */
+CMPM_API cmpm_Status cmpm_World_GetFieldShape(cmpm_WorldId world, int32_t* out_nx, int32_t* out_ny,
+                                              double* out_origin_x, double* out_origin_y, double* out_cell);
+CMPM_API cmpm_Status cmpm_World_GetField(cmpm_WorldId world, cmpm_Field field, double* out, int32_t capacity,
+                                         int32_t* out_written);
+
+/* Agents. */
+CMPM_API cmpm_Status cmpm_World_AddAgent(cmpm_WorldId world, const cmpm_AgentDef* def, cmpm_AgentId* out_agent);
+CMPM_API cmpm_Status cmpm_World_RemoveAgent(cmpm_WorldId world, cmpm_AgentId agent);
+CMPM_API cmpm_Status cmpm_World_SetAgentTarget(cmpm_WorldId world, cmpm_AgentId agent, const char* target);
+CMPM_API cmpm_Status cmpm_World_GetAgentState(cmpm_WorldId world, cmpm_AgentId agent, double* out_x, double* out_y,
+                                              double* out_vx, double* out_vy);
+
+/* Material parameters by name (see docs/model-format.md: E, gamma, tension_scale, tau, ...). */
+CMPM_API cmpm_Status cmpm_World_GetParameter(cmpm_WorldId world, const char* name, double* out_value);
+CMPM_API cmpm_Status cmpm_World_SetParameter(cmpm_WorldId world, const char* name, double value);
+/* Replace the traction network from JSON: {"layers": [...]} or {"constant": K}. */
+CMPM_API cmpm_Status cmpm_World_LoadTraction(cmpm_WorldId world, const char* traction_json);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* CROWDMPM_H */

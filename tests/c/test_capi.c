@@ -1,0 +1,216 @@
+/* C99 test of the C ABI: the drill through cmpm_* calls gives the same state hash as the C++
+ * engine; bulk reads work; every misuse returns its status code and a message, never a crash.
+ * Usage: test_capi REPO_DIR */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "crowdmpm/crowdmpm.h"
+#include "expected_hashes.h"
+
+static int passed = 0, failed = 0;
+
+#define CHECK(cond)                                                              \
+  do {                                                                           \
+    if (cond) {                                                                  \
+      ++passed;                                                                  \
+    } else {                                                                     \
+      ++failed;                                                                  \
+      fprintf(stderr, "%s:%d: CHECK(%s) failed; last error: %s\n", __FILE__,     \
+              __LINE__, #cond, cmpm_GetLastError());                             \
+    }                                                                            \
+  } while (0)
+
+/* The call fails with `status` and the message mentions `word`. */
+#define CHECK_FAILS(call, status, word)                                          \
+  do {                                                                           \
+    cmpm_Status s_ = (call);                                                     \
+    CHECK(s_ == (status));                                                       \
+    CHECK(strstr(cmpm_GetLastError(), (word)) != NULL);                          \
+  } while (0)
+
+static char drill_path[4096];
+
+static cmpm_WorldId make_drill(void) {
+  cmpm_WorldDef def = cmpm_DefaultWorldDef();
+  cmpm_WorldId w;
+  def.scenario_path = drill_path;
+  CHECK(cmpm_CreateWorld(&def, &w) == CMPM_OK);
+  return w;
+}
+
+static void test_hash_and_bulk_reads(void) {
+  cmpm_WorldId w = make_drill();
+  uint64_t hash = 0;
+  int32_t n = 0, written = 0, i;
+  double *xy, t = 0, xmin = 1e300, xmax = -1e300;
+  CHECK(cmpm_World_IsValid(w) == 1);
+  CHECK(cmpm_World_Step(w, CMPM_EXPECTED_DRILL_STEPS) == CMPM_OK);
+  CHECK(cmpm_World_GetStateHash(w, &hash) == CMPM_OK);
+  if (hash != CMPM_EXPECTED_DRILL_HASH)
+    fprintf(stderr, "hash 0x%016llx, expected 0x%016llx\n", (unsigned long long)hash, (unsigned long long)CMPM_EXPECTED_DRILL_HASH);
+  CHECK(hash == CMPM_EXPECTED_DRILL_HASH);
+  CHECK(cmpm_World_GetTime(w, &t) == CMPM_OK);
+  CHECK(fabs(t - CMPM_EXPECTED_DRILL_STEPS * 0.01) < 1e-9);
+  CHECK(cmpm_World_GetAgentCount(w, &n) == CMPM_OK);
+  CHECK(n > 250);
+  xy = (double*)malloc(sizeof(double) * 2 * (size_t)n);
+  CHECK(cmpm_World_GetPositions(w, xy, n, &written) == CMPM_OK);
+  CHECK(written == n);
+  for (i = 0; i < written; ++i) {
+    if (xy[2 * i] < xmin) xmin = xy[2 * i];
+    if (xy[2 * i] > xmax) xmax = xy[2 * i];
+  }
+  CHECK(xmin >= 0 && xmax <= 11); /* the drill's domain */
+  /* One short of the count: refused, nothing written. */
+  CHECK_FAILS(cmpm_World_GetPositions(w, xy, n - 1, &written), CMPM_ERROR_BUFFER_TOO_SMALL, "buffer holds");
+  CHECK(written == 0);
+  free(xy);
+  {
+    int32_t nx = 0, ny = 0, wr = 0;
+    double ox, oy, cell, *f, total = 0;
+    CHECK(cmpm_World_GetFieldShape(w, &nx, &ny, &ox, &oy, &cell) == CMPM_OK);
+    CHECK(nx > 0 && ny > 0 && cell == 0.5);
+    f = (double*)malloc(sizeof(double) * 2 * (size_t)nx * (size_t)ny);
+    CHECK(cmpm_World_GetField(w, CMPM_FIELD_DENSITY, f, nx * ny, &wr) == CMPM_OK);
+    for (i = 0; i < wr; ++i) total += f[i] * cell * cell;
+    CHECK(fabs(total - n) < 1e-6 * n); /* density integrates to the head count */
+    CHECK_FAILS(cmpm_World_GetField(w, CMPM_FIELD_VELOCITY, f, nx * ny, &wr), CMPM_ERROR_BUFFER_TOO_SMALL, "field");
+    CHECK_FAILS(cmpm_World_GetField(w, (cmpm_Field)7, f, 2 * nx * ny, &wr), CMPM_ERROR_INVALID_ARGUMENT, "unknown field");
+    free(f);
+  }
+  CHECK(cmpm_DestroyWorld(w) == CMPM_OK);
+}
+
+static void test_agents_and_parameters(void) {
+  cmpm_WorldId w = make_drill();
+  cmpm_AgentDef a = cmpm_DefaultAgentDef();
+  cmpm_AgentId id, zero = {0};
+  double x, y, vx, vy, e;
+  a.x = 9.5; /* outside the room, beyond the door */
+  a.y = 4.0;
+  a.target = "door";
+  CHECK(cmpm_World_AddAgent(w, &a, &id) == CMPM_OK);
+  CHECK(cmpm_World_GetAgentState(w, id, &x, &y, &vx, &vy) == CMPM_OK);
+  CHECK(x == 9.5 && y == 4.0);
+  CHECK(cmpm_World_SetAgentTarget(w, id, "nearest_exit") == CMPM_OK);
+  CHECK_FAILS(cmpm_World_SetAgentTarget(w, id, "nowhere"), CMPM_ERROR_INVALID_ARGUMENT, "nowhere");
+  CHECK(cmpm_World_RemoveAgent(w, id) == CMPM_OK);
+  CHECK_FAILS(cmpm_World_GetAgentState(w, id, &x, &y, &vx, &vy), CMPM_ERROR_STALE_HANDLE, "was removed");
+  CHECK_FAILS(cmpm_World_RemoveAgent(w, id), CMPM_ERROR_STALE_HANDLE, "was removed");
+  CHECK_FAILS(cmpm_World_RemoveAgent(w, zero), CMPM_ERROR_NULL_HANDLE, "null agent");
+  a.x = 8.1; /* inside the wall */
+  a.y = 1.0;
+  CHECK_FAILS(cmpm_World_AddAgent(w, &a, &id), CMPM_ERROR_INVALID_ARGUMENT, "inside a wall");
+  a.x = 2;
+  a.y = 2;
+  a.target = NULL;
+  a.group = 5;
+  CHECK_FAILS(cmpm_World_AddAgent(w, &a, &id), CMPM_ERROR_INVALID_ARGUMENT, "group 5 out of range");
+  a.group = 0;
+  a.body_radius = 3;
+  CHECK_FAILS(cmpm_World_AddAgent(w, &a, &id), CMPM_ERROR_INVALID_ARGUMENT, "body_radius");
+  a.body_radius = NAN;
+  CHECK_FAILS(cmpm_World_AddAgent(w, &a, &id), CMPM_ERROR_INVALID_ARGUMENT, "body_radius");
+
+  CHECK(cmpm_World_GetParameter(w, "E", &e) == CMPM_OK);
+  CHECK(e == 20);
+  CHECK(cmpm_World_SetParameter(w, "E", 35) == CMPM_OK);
+  CHECK(cmpm_World_GetParameter(w, "E", &e) == CMPM_OK && e == 35);
+  CHECK_FAILS(cmpm_World_SetParameter(w, "E", -1), CMPM_ERROR_INVALID_ARGUMENT, "E must be in");
+  CHECK_FAILS(cmpm_World_SetParameter(w, "E", NAN), CMPM_ERROR_INVALID_ARGUMENT, "E must be in");
+  CHECK_FAILS(cmpm_World_GetParameter(w, "stiffness", &e), CMPM_ERROR_INVALID_ARGUMENT, "unknown material parameter");
+  CHECK(cmpm_World_LoadTraction(w, "{\"constant\": 3}") == CMPM_OK);
+  CHECK_FAILS(cmpm_World_LoadTraction(w, "{\"layers\": [{\"weights\": [[1, 2]], \"biases\": [0]}]}"),
+              CMPM_ERROR_INVALID_INPUT, "traction.layers[0].weights[0]");
+  CHECK_FAILS(cmpm_World_LoadTraction(w, "{\"constant\": "), CMPM_ERROR_INVALID_INPUT, "invalid JSON");
+  CHECK(cmpm_World_Step(w, 5) == CMPM_OK);
+  CHECK(cmpm_DestroyWorld(w) == CMPM_OK);
+}
+
+static void test_misuse(void) {
+  cmpm_WorldDef def = cmpm_DefaultWorldDef(), raw;
+  cmpm_WorldId w, null_world = {0, 0}, bogus = {77, 1};
+  cmpm_AgentDef agent_raw;
+  cmpm_AgentId id;
+  double t, buf[4];
+  int32_t n;
+  uint64_t h;
+
+  /* Def structs not made by their default functions. */
+  memset(&raw, 0, sizeof raw);
+  raw.scenario_path = drill_path;
+  raw.threads = 1;
+  CHECK_FAILS(cmpm_CreateWorld(&raw, &w), CMPM_ERROR_UNINITIALIZED_DEF, "cmpm_DefaultWorldDef");
+  CHECK(w.index1 == 0);
+  CHECK_FAILS(cmpm_CreateWorld(NULL, &w), CMPM_ERROR_INVALID_ARGUMENT, "def is NULL");
+  def.scenario_path = drill_path;
+  CHECK_FAILS(cmpm_CreateWorld(&def, NULL), CMPM_ERROR_INVALID_ARGUMENT, "out_world is NULL");
+  def.threads = 0;
+  CHECK_FAILS(cmpm_CreateWorld(&def, &w), CMPM_ERROR_INVALID_ARGUMENT, "threads");
+  def.threads = 1;
+  def.scenario_json = "{}";
+  CHECK_FAILS(cmpm_CreateWorld(&def, &w), CMPM_ERROR_INVALID_ARGUMENT, "exactly one of scenario_json or scenario_path");
+  def.scenario_path = NULL;
+  def.scenario_json = "{\"format\": \"crowdmpm-scenario\", \"version\": 1,";
+  CHECK_FAILS(cmpm_CreateWorld(&def, &w), CMPM_ERROR_INVALID_INPUT, "invalid JSON");
+  def.scenario_json = "{\"format\": \"crowdmpm-scenario\", \"version\": 1, \"domain\": {\"min\": [0, 0], \"max\": [5, 5]},"
+                      " \"time\": {\"duration\": 1}, \"groups\": [{\"spawn\": {\"rect\": [1, 1, 2, 2]}, \"density\": -2}]}";
+  CHECK_FAILS(cmpm_CreateWorld(&def, &w), CMPM_ERROR_INVALID_INPUT, "groups[0].density");
+  def.scenario_json = NULL;
+  def.scenario_path = "/nonexistent/scenario.json";
+  CHECK_FAILS(cmpm_CreateWorld(&def, &w), CMPM_ERROR_INVALID_INPUT, "/nonexistent/scenario.json");
+
+  /* Null and never-created worlds. */
+  CHECK_FAILS(cmpm_World_Step(null_world, 1), CMPM_ERROR_NULL_HANDLE, "null world");
+  CHECK_FAILS(cmpm_World_GetTime(bogus, &t), CMPM_ERROR_STALE_HANDLE, "does not exist");
+  CHECK(cmpm_World_IsValid(null_world) == 0);
+  CHECK(cmpm_World_IsValid(bogus) == 0);
+
+  /* A destroyed world. */
+  w = make_drill();
+  CHECK(cmpm_DestroyWorld(w) == CMPM_OK);
+  CHECK(cmpm_World_IsValid(w) == 0);
+  CHECK_FAILS(cmpm_World_Step(w, 1), CMPM_ERROR_STALE_HANDLE, "destroyed");
+  CHECK_FAILS(cmpm_World_GetStateHash(w, &h), CMPM_ERROR_STALE_HANDLE, "destroyed");
+  CHECK_FAILS(cmpm_DestroyWorld(w), CMPM_ERROR_STALE_HANDLE, "destroyed");
+  {
+    /* Its slot is reused with a new generation; the old id stays stale. */
+    cmpm_WorldId w2 = make_drill();
+    CHECK(w2.index1 == w.index1 && w2.generation != w.generation);
+    CHECK_FAILS(cmpm_World_GetAgentCount(w, &n), CMPM_ERROR_STALE_HANDLE, "destroyed");
+
+    /* Out-of-range steps and time steps, NULL outputs, zeroed agent def. */
+    CHECK_FAILS(cmpm_World_Step(w2, -1), CMPM_ERROR_INVALID_ARGUMENT, "steps must be in");
+    CHECK_FAILS(cmpm_World_Step(w2, 20000000), CMPM_ERROR_INVALID_ARGUMENT, "steps must be in");
+    CHECK_FAILS(cmpm_World_SetTimeStep(w2, 0), CMPM_ERROR_INVALID_ARGUMENT, "time.dt");
+    CHECK_FAILS(cmpm_World_SetTimeStep(w2, NAN), CMPM_ERROR_INVALID_ARGUMENT, "time.dt");
+    CHECK_FAILS(cmpm_World_SetTimeStep(w2, 0.09), CMPM_ERROR_INVALID_ARGUMENT, "too large");
+    CHECK(cmpm_World_SetTimeStep(w2, 0.005) == CMPM_OK);
+    CHECK(cmpm_World_GetTimeStep(w2, &t) == CMPM_OK && t == 0.005);
+    CHECK_FAILS(cmpm_World_GetTime(w2, NULL), CMPM_ERROR_INVALID_ARGUMENT, "out_seconds is NULL");
+    CHECK_FAILS(cmpm_World_GetPositions(w2, NULL, 1000, &n), CMPM_ERROR_INVALID_ARGUMENT, "out is NULL");
+    CHECK_FAILS(cmpm_World_GetPositions(w2, buf, -5, &n), CMPM_ERROR_INVALID_ARGUMENT, "capacity");
+    CHECK_FAILS(cmpm_World_GetPositions(w2, buf, 2, NULL), CMPM_ERROR_INVALID_ARGUMENT, "out_written is NULL");
+    memset(&agent_raw, 0, sizeof agent_raw);
+    CHECK_FAILS(cmpm_World_AddAgent(w2, &agent_raw, &id), CMPM_ERROR_UNINITIALIZED_DEF, "cmpm_DefaultAgentDef");
+    CHECK(cmpm_DestroyWorld(w2) == CMPM_OK);
+  }
+  /* A successful call clears the message. */
+  CHECK(strcmp(cmpm_GetVersion(), "0.1.0") == 0);
+  CHECK(cmpm_GetAbiVersion() == CMPM_ABI_VERSION);
+}
+
+int main(int argc, char** argv) {
+  if (argc != 2) {
+    fprintf(stderr, "usage: test_capi REPO_DIR\n");
+    return 2;
+  }
+  snprintf(drill_path, sizeof drill_path, "%s/scenarios/drill.json", argv[1]);
+  test_hash_and_bulk_reads();
+  test_agents_and_parameters();
+  test_misuse();
+  printf("capi: %d passed, %d failed\n", passed, failed);
+  return failed ? 1 : 0;
+}
