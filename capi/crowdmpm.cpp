@@ -287,11 +287,11 @@ cmpm_Status cmpm_World_GetFieldShape(cmpm_WorldId world, int32_t* out_nx, int32_
   });
 }
 
-cmpm_Status cmpm_World_GetField(cmpm_WorldId world, cmpm_Field field, double* out, int32_t capacity, int32_t* out_written) {
+cmpm_Status cmpm_World_GetField(cmpm_WorldId world, int32_t field, double* out, int32_t capacity, int32_t* out_written) {
   return guard("cmpm_World_GetField", CMPM_ERROR_INVALID_ARGUMENT, [&] {
     const Simulation& sim = lookup(world);
     if (field != CMPM_FIELD_DENSITY && field != CMPM_FIELD_PRESSURE && field != CMPM_FIELD_VELOCITY)
-      fail(CMPM_ERROR_INVALID_ARGUMENT, "unknown field " + std::to_string(static_cast<int>(field)));
+      fail(CMPM_ERROR_INVALID_ARGUMENT, "unknown field " + std::to_string(field) + " (0 density, 1 pressure, 2 velocity)");
     const size_t n = sim.grid().nodes() * (field == CMPM_FIELD_VELOCITY ? 2 : 1);
     check_capacity(capacity, n, out_written, "field");
     require(out, "out");

@@ -218,8 +218,12 @@ void Simulation::place_group(size_t gi) {
                 " persons/m^2 on " + format_number(area) + " m^2 of walkable area cannot hold bodies of radius " +
                 format_number(r) + " m (hexagonal packing allows at most " + format_number(densest) + ")");
   // Existing agents (earlier groups) in a coarse hash for overlap checks.
-  std::unordered_map<long long, std::vector<Vec2>> occupied;
-  auto key = [](const Vec2& p) { return (static_cast<long long>(std::floor(p.x())) << 32) ^ static_cast<long long>(std::floor(p.y()) + 1e6); };
+  std::unordered_map<uint64_t, std::vector<Vec2>> occupied;
+  auto key = [](const Vec2& p) {
+    // 1 m cells; offset so that coordinates down to -2^30 m stay non-negative before packing.
+    auto cell = [](double c) { return static_cast<uint64_t>(static_cast<int64_t>(std::floor(c)) + (int64_t{1} << 30)); };
+    return (cell(p.x()) << 32) ^ cell(p.y());
+  };
   for (size_t p = 0; p < world_.size(); ++p) occupied[key(world_.x[p])].push_back(world_.x[p]);
   auto overlaps = [&](const Vec2& p, double rr) {
     for (int dy = -1; dy <= 1; ++dy)

@@ -77,7 +77,7 @@ static void test_hash_and_bulk_reads(void) {
     for (i = 0; i < wr; ++i) total += f[i] * cell * cell;
     CHECK(fabs(total - n) < 1e-6 * n); /* density integrates to the head count */
     CHECK_FAILS(cmpm_World_GetField(w, CMPM_FIELD_VELOCITY, f, nx * ny, &wr), CMPM_ERROR_BUFFER_TOO_SMALL, "field");
-    CHECK_FAILS(cmpm_World_GetField(w, (cmpm_Field)7, f, 2 * nx * ny, &wr), CMPM_ERROR_INVALID_ARGUMENT, "unknown field");
+    CHECK_FAILS(cmpm_World_GetField(w, 7, f, 2 * nx * ny, &wr), CMPM_ERROR_INVALID_ARGUMENT, "unknown field");
     free(f);
   }
   CHECK(cmpm_DestroyWorld(w) == CMPM_OK);

@@ -133,7 +133,8 @@ CMPM_API cmpm_Status cmpm_World_GetPressures(cmpm_WorldId world, double* out, in
  * row-major (j slowest). capacity is in doubles (nx * ny, or 2 * nx * ny for velocity). */
 CMPM_API cmpm_Status cmpm_World_GetFieldShape(cmpm_WorldId world, int32_t* out_nx, int32_t* out_ny,
                                               double* out_origin_x, double* out_origin_y, double* out_cell);
-CMPM_API cmpm_Status cmpm_World_GetField(cmpm_WorldId world, cmpm_Field field, double* out, int32_t capacity,
+/* field: a cmpm_Field value (passed as int32_t so that any value a host sends is well defined). */
+CMPM_API cmpm_Status cmpm_World_GetField(cmpm_WorldId world, int32_t field, double* out, int32_t capacity,
                                          int32_t* out_written);
 
 /* Agents. */

@@ -1,0 +1,102 @@
+// One SWIG interface for Python, Java and C#. It wraps crowdmpm_binding::World, a thin class
+// over the C ABI that raises the library's error messages as exceptions.
+%module(docstring="CrowdMPM: high-density crowd simulation with a learned MPM crowd material.") crowdmpm
+
+%{
+#include "crowdmpm_binding.hpp"
+%}
+
+%include <exception.i>
+%include <std_string.i>
+%include <std_vector.i>
+%include <stdint.i>
+
+%exception {
+  try {
+    $action
+  } catch (const std::exception& e) {
+    SWIG_exception(SWIG_RuntimeError, e.what());
+  }
+}
+
+%template(DoubleVector) std::vector<double>;
+%template(LongVector) std::vector<long long>;
+
+%newobject crowdmpm_binding::World::null_world;
+
+#ifdef SWIGJAVA
+%pragma(java) jniclasscode=%{
+  static {
+    System.loadLibrary("crowdmpm_java");
+  }
+%}
+#endif
+
+#ifdef SWIGPYTHON
+%feature("autodoc", "2");
+%feature("kwargs");
+%feature("compactdefaultargs");
+%feature("docstring") crowdmpm_binding::World "A simulated crowd: World(scenario, model='', threads=1). scenario is a file path or JSON text; model likewise ('' for the scenario's own or the default). Errors raise RuntimeError with the library's message.";
+%feature("docstring") crowdmpm_binding::World::step "step(steps=1): advance by steps steps of the scenario's dt.";
+%feature("docstring") crowdmpm_binding::World::time "time() -> float: simulated time, s.";
+%feature("docstring") crowdmpm_binding::World::time_step "time_step() -> float: dt, s.";
+%feature("docstring") crowdmpm_binding::World::set_time_step "set_time_step(dt): change dt (s); checked against the grid.";
+%feature("docstring") crowdmpm_binding::World::state_hash "state_hash() -> int: FNV-1a hash of all agents' id, position and velocity (equal across languages and thread counts).";
+%feature("docstring") crowdmpm_binding::World::state_hash_hex "state_hash_hex() -> str: the state hash as 16 hex digits.";
+%feature("docstring") crowdmpm_binding::World::agent_count "agent_count() -> int: agents currently in the world.";
+%feature("docstring") crowdmpm_binding::World::exited_count "exited_count() -> int: agents that have left through exits.";
+%feature("docstring") crowdmpm_binding::World::positions "positions() -> list of x0, y0, x1, y1, ... (m); see positions_array() for numpy.";
+%feature("docstring") crowdmpm_binding::World::velocities "velocities() -> list of vx0, vy0, ... (m/s); see velocities_array() for numpy.";
+%feature("docstring") crowdmpm_binding::World::pressures "pressures() -> list of agent pressures; see pressures_array() for numpy.";
+%feature("docstring") crowdmpm_binding::World::agent_ids "agent_ids() -> list of agent ids, in the order of the bulk reads.";
+%feature("docstring") crowdmpm_binding::World::field "field(name) -> list: grid field 'density', 'pressure' or 'velocity', row-major; see field_array().";
+%feature("docstring") crowdmpm_binding::World::field_nx "field_nx() -> int: grid nodes along x.";
+%feature("docstring") crowdmpm_binding::World::field_ny "field_ny() -> int: grid nodes along y.";
+%feature("docstring") crowdmpm_binding::World::add_agent "add_agent(x, y, target, vx=0, vy=0, desired_speed=1.3) -> int: add an agent walking to target (exit or goal id, or 'nearest_exit'); returns its id.";
+%feature("docstring") crowdmpm_binding::World::remove_agent "remove_agent(id): remove an agent; its id becomes stale.";
+%feature("docstring") crowdmpm_binding::World::set_agent_target "set_agent_target(id, target): send an agent to another exit or goal.";
+%feature("docstring") crowdmpm_binding::World::agent_state "agent_state(id) -> [x, y, vx, vy] of one agent.";
+%feature("docstring") crowdmpm_binding::World::parameter "parameter(name) -> float: a material parameter by name (E, gamma, tau, ...).";
+%feature("docstring") crowdmpm_binding::World::set_parameter "set_parameter(name, value): set a material parameter (range-checked).";
+%feature("docstring") crowdmpm_binding::World::load_traction "load_traction(json): replace the traction network ({'layers': [...]} or {'constant': K}).";
+%feature("docstring") crowdmpm_binding::World::destroy "destroy(): free the world now; later calls raise.";
+%feature("docstring") crowdmpm_binding::World::is_valid "is_valid() -> bool: whether the world still exists.";
+%feature("docstring") crowdmpm_binding::World::null_world "null_world() -> World: a world with a null id (every call raises); for testing error handling.";
+%feature("docstring") crowdmpm_binding::version "version() -> str: library version.";
+%feature("docstring") crowdmpm_binding::abi_version "abi_version() -> int: C ABI version.";
+#endif
+
+%include "crowdmpm_binding.hpp"
+
+#ifdef SWIGPYTHON
+%pythoncode %{
+import numpy as _np
+
+def _positions_array(self):
+    """positions_array() -> numpy array (n, 2) of agent positions, m."""
+    return _np.asarray(self.positions(), dtype=_np.float64).reshape(-1, 2)
+
+def _velocities_array(self):
+    """velocities_array() -> numpy array (n, 2) of agent velocities, m/s."""
+    return _np.asarray(self.velocities(), dtype=_np.float64).reshape(-1, 2)
+
+def _pressures_array(self):
+    """pressures_array() -> numpy array (n,) of agent pressures."""
+    return _np.asarray(self.pressures(), dtype=_np.float64)
+
+def _agent_ids_array(self):
+    """agent_ids_array() -> numpy int64 array (n,) of agent ids."""
+    return _np.asarray(self.agent_ids(), dtype=_np.int64)
+
+def _field_array(self, name):
+    """field_array(name) -> numpy array (ny, nx) or (ny, nx, 2) of a grid field."""
+    a = _np.asarray(self.field(name), dtype=_np.float64)
+    return a.reshape(self.field_ny(), self.field_nx(), -1).squeeze(-1) if name != "velocity" else a.reshape(self.field_ny(), self.field_nx(), 2)
+
+World.positions_array = _positions_array
+World.velocities_array = _velocities_array
+World.pressures_array = _pressures_array
+World.agent_ids_array = _agent_ids_array
+World.field_array = _field_array
+%}
+#endif

@@ -1,0 +1,145 @@
+// A thin C++ class over the C ABI, used only to generate the SWIG bindings: it turns status
+// codes into exceptions (with the library's message) and buffers into vectors, so that every
+// host language gets exceptions and bulk arrays. It calls nothing but cmpm_* functions.
+#pragma once
+#include <cstdint>
+#include <cstdio>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "crowdmpm/crowdmpm.h"
+
+namespace crowdmpm_binding {
+
+inline void check(cmpm_Status s) {
+  if (s != CMPM_OK) throw std::runtime_error(cmpm_GetLastError());
+}
+
+inline std::string version() { return cmpm_GetVersion(); }
+inline int abi_version() { return cmpm_GetAbiVersion(); }
+
+class World {
+ public:
+  // scenario: a file path, or JSON text if it starts with '{'. model: "" (the scenario's or the
+  // default model), a path, or JSON text. threads: 1..256, results do not depend on it.
+  World(const std::string& scenario, const std::string& model = "", int threads = 1) {
+    cmpm_WorldDef def = cmpm_DefaultWorldDef();
+    bool scenario_text = is_json(scenario), model_text = is_json(model);
+    def.scenario_json = scenario_text ? scenario.c_str() : nullptr;
+    def.scenario_path = scenario_text ? nullptr : scenario.c_str();
+    if (!model.empty()) {
+      def.model_json = model_text ? model.c_str() : nullptr;
+      def.model_path = model_text ? nullptr : model.c_str();
+    }
+    def.threads = threads;
+    check(cmpm_CreateWorld(&def, &id_));
+  }
+  ~World() {
+    if (id_.index1) cmpm_DestroyWorld(id_);
+  }
+  World(const World&) = delete;
+  World& operator=(const World&) = delete;
+
+  // A world whose id is null: every call on it raises (for tests of error handling).
+  static World* null_world() { return new World(); }
+
+  // Destroys the world now; later calls raise "... was destroyed".
+  void destroy() {
+    cmpm_WorldId id = id_;
+    check(cmpm_DestroyWorld(id));
+  }
+  bool is_valid() const { return cmpm_World_IsValid(id_) == 1; }
+
+  void step(int steps = 1) { check(cmpm_World_Step(id_, steps)); }
+  double time() const { double t; check(cmpm_World_GetTime(id_, &t)); return t; }
+  double time_step() const { double t; check(cmpm_World_GetTimeStep(id_, &t)); return t; }
+  void set_time_step(double dt) { check(cmpm_World_SetTimeStep(id_, dt)); }
+  uint64_t state_hash() const { uint64_t h; check(cmpm_World_GetStateHash(id_, &h)); return h; }
+  // The state hash as 16 lower-case hex digits (for hosts without unsigned 64-bit integers).
+  std::string state_hash_hex() const {
+    char buf[17];
+    std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(state_hash()));
+    return buf;
+  }
+  int agent_count() const { int32_t n; check(cmpm_World_GetAgentCount(id_, &n)); return n; }
+  int exited_count() const { int32_t n; check(cmpm_World_GetExitedCount(id_, &n)); return n; }
+
+  // Bulk reads: x0, y0, x1, y1, ... (m); vx0, vy0, ... (m/s); pressures; ids. Same agent order.
+  std::vector<double> positions() const { return read2(&cmpm_World_GetPositions); }
+  std::vector<double> velocities() const { return read2(&cmpm_World_GetVelocities); }
+  std::vector<double> pressures() const {
+    std::vector<double> out(static_cast<size_t>(agent_count()));
+    int32_t n;
+    check(cmpm_World_GetPressures(id_, out.data(), static_cast<int32_t>(out.size()), &n));
+    out.resize(static_cast<size_t>(n));
+    return out;
+  }
+  std::vector<long long> agent_ids() const {
+    std::vector<cmpm_AgentId> ids(static_cast<size_t>(agent_count()));
+    int32_t n;
+    check(cmpm_World_GetAgentIds(id_, ids.data(), static_cast<int32_t>(ids.size()), &n));
+    std::vector<long long> out;
+    for (int32_t i = 0; i < n; ++i) out.push_back(static_cast<long long>(ids[static_cast<size_t>(i)].value));
+    return out;
+  }
+
+  // Grid field "density", "pressure" or "velocity" (2 values per node), row-major, ny rows of nx.
+  std::vector<double> field(const std::string& name) const {
+    int32_t f = name == "density" ? CMPM_FIELD_DENSITY : name == "pressure" ? CMPM_FIELD_PRESSURE
+                : name == "velocity" ? CMPM_FIELD_VELOCITY : -1;
+    if (f < 0) throw std::runtime_error("unknown field \"" + name + "\" (density, pressure or velocity)");
+    std::vector<double> out(static_cast<size_t>(field_nx()) * static_cast<size_t>(field_ny()) * (f == CMPM_FIELD_VELOCITY ? 2 : 1));
+    int32_t n;
+    check(cmpm_World_GetField(id_, f, out.data(), static_cast<int32_t>(out.size()), &n));
+    return out;
+  }
+  int field_nx() const { int32_t nx, ny; check(cmpm_World_GetFieldShape(id_, &nx, &ny, nullptr, nullptr, nullptr)); return nx; }
+  int field_ny() const { int32_t nx, ny; check(cmpm_World_GetFieldShape(id_, &nx, &ny, nullptr, nullptr, nullptr)); return ny; }
+
+  // Adds an agent walking to `target` (an exit or goal id, or "nearest_exit"); returns its id.
+  long long add_agent(double x, double y, const std::string& target, double vx = 0, double vy = 0, double desired_speed = 1.3) {
+    cmpm_AgentDef d = cmpm_DefaultAgentDef();
+    d.x = x;
+    d.y = y;
+    d.vx = vx;
+    d.vy = vy;
+    d.desired_speed = desired_speed;
+    d.target = target.c_str();
+    cmpm_AgentId a;
+    check(cmpm_World_AddAgent(id_, &d, &a));
+    return static_cast<long long>(a.value);
+  }
+  void remove_agent(long long agent) { check(cmpm_World_RemoveAgent(id_, cmpm_AgentId{static_cast<uint64_t>(agent)})); }
+  void set_agent_target(long long agent, const std::string& target) {
+    check(cmpm_World_SetAgentTarget(id_, cmpm_AgentId{static_cast<uint64_t>(agent)}, target.c_str()));
+  }
+  // x, y, vx, vy of one agent.
+  std::vector<double> agent_state(long long agent) const {
+    std::vector<double> s(4);
+    check(cmpm_World_GetAgentState(id_, cmpm_AgentId{static_cast<uint64_t>(agent)}, &s[0], &s[1], &s[2], &s[3]));
+    return s;
+  }
+
+  double parameter(const std::string& name) const { double v; check(cmpm_World_GetParameter(id_, name.c_str(), &v)); return v; }
+  void set_parameter(const std::string& name, double value) { check(cmpm_World_SetParameter(id_, name.c_str(), value)); }
+  void load_traction(const std::string& json) { check(cmpm_World_LoadTraction(id_, json.c_str())); }
+
+ private:
+  World() : id_{0, 0} {}
+  static bool is_json(const std::string& s) {
+    for (char c : s)
+      if (c != ' ' && c != '\n' && c != '\t' && c != '\r') return c == '{';
+    return false;
+  }
+  std::vector<double> read2(cmpm_Status (*fn)(cmpm_WorldId, double*, int32_t, int32_t*)) const {
+    std::vector<double> out(2 * static_cast<size_t>(agent_count()));
+    int32_t n;
+    check(fn(id_, out.data(), static_cast<int32_t>(out.size() / 2), &n));
+    out.resize(2 * static_cast<size_t>(n));
+    return out;
+  }
+  cmpm_WorldId id_;
+};
+
+}  // namespace crowdmpm_binding

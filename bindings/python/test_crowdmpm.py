@@ -1,0 +1,75 @@
+"""Python binding test: the drill gives the same state hash as the C test, bulk reads come back
+as numpy arrays, and errors (bad JSON, stale agent id, null or destroyed world) raise
+RuntimeError with the library's message.
+
+usage: test_crowdmpm.py DRILL_JSON STEPS EXPECTED_HASH_HEX"""
+import sys
+import unittest
+
+import numpy as np
+
+import crowdmpm
+
+DRILL, STEPS, HASH = sys.argv[1], int(sys.argv[2]), sys.argv[3].lower()
+
+
+class Bindings(unittest.TestCase):
+    def test_hash_matches_c_and_cpp(self):
+        w = crowdmpm.World(DRILL)
+        w.step(STEPS)
+        self.assertEqual(w.state_hash_hex(), HASH)
+        self.assertEqual(w.state_hash(), int(HASH, 16))
+        self.assertAlmostEqual(w.time(), STEPS * 0.01)
+
+    def test_bulk_reads_are_numpy(self):
+        w = crowdmpm.World(DRILL, threads=2)
+        w.step(10)
+        xy = w.positions_array()
+        self.assertIsInstance(xy, np.ndarray)
+        self.assertEqual(xy.shape, (w.agent_count(), 2))
+        self.assertTrue(np.all((xy[:, 0] >= 0) & (xy[:, 0] <= 11)))
+        self.assertEqual(w.velocities_array().shape, xy.shape)
+        self.assertEqual(w.pressures_array().shape, (w.agent_count(),))
+        ids = w.agent_ids_array()
+        self.assertEqual(len(set(ids.tolist())), w.agent_count())
+        rho = w.field_array("density")
+        self.assertEqual(rho.shape, (w.field_ny(), w.field_nx()))
+        self.assertAlmostEqual(rho.sum() * 0.25, w.agent_count(), places=6)
+        self.assertEqual(w.field_array("velocity").shape, (w.field_ny(), w.field_nx(), 2))
+
+    def test_agents_and_parameters(self):
+        w = crowdmpm.World(DRILL)
+        a = w.add_agent(9.5, 4.0, "door")
+        self.assertEqual(list(w.agent_state(a))[:2], [9.5, 4.0])
+        w.set_parameter("E", 30)
+        self.assertEqual(w.parameter("E"), 30)
+        w.remove_agent(a)
+        with self.assertRaisesRegex(RuntimeError, "agent %d was removed" % a):
+            w.agent_state(a)
+        with self.assertRaisesRegex(RuntimeError, "E must be in"):
+            w.set_parameter("E", -1)
+
+    def test_errors_raise_with_messages(self):
+        with self.assertRaisesRegex(RuntimeError, "invalid JSON"):
+            crowdmpm.World('{"format": "crowdmpm-scenario",')
+        with self.assertRaisesRegex(RuntimeError, "null world"):
+            crowdmpm.World.null_world().step(1)
+        w = crowdmpm.World(DRILL)
+        w.destroy()
+        self.assertFalse(w.is_valid())
+        with self.assertRaisesRegex(RuntimeError, "destroyed"):
+            w.step(1)
+        with self.assertRaisesRegex(RuntimeError, "unknown field"):
+            crowdmpm.World(DRILL).field("temperature")
+
+    def test_docstrings(self):
+        self.assertIn("advance", crowdmpm.World.step.__doc__)
+        self.assertIn("numpy", crowdmpm.World.positions_array.__doc__)
+        self.assertEqual(crowdmpm.version(), "0.1.0")
+
+
+if __name__ == "__main__":
+    result = unittest.main(argv=[sys.argv[0], "-v"], exit=False).result
+    failed = len(result.failures) + len(result.errors)
+    print("python: %d passed, %d failed" % (result.testsRun - failed, failed))
+    sys.exit(1 if failed else 0)
