@@ -20,7 +20,7 @@ int main(int argc, char** argv) {
   long agents = 10000, steps = 200, warmup = 20;
   double density = 5;
   int threads = 1;
-  bool header = false;
+  bool header = false, profile = false;
   for (int i = 1; i < argc; ++i) {
     std::string a = argv[i];
     auto next = [&]() -> const char* {
@@ -33,6 +33,7 @@ int main(int argc, char** argv) {
     else if (a == "--steps") steps = std::atol(next());
     else if (a == "--warmup") warmup = std::atol(next());
     else if (a == "--header") header = true;
+    else if (a == "--profile") profile = true;
     else { std::fprintf(stderr, "unknown option %s\n", a.c_str()); return 2; }
   }
   if (agents < 1 || !(density > 0 && density <= 7) || threads < 1 || steps < 1) {
@@ -65,6 +66,7 @@ int main(int argc, char** argv) {
     sim.add_agent(d);
   }
   sim.run_steps(warmup);
+  sim.set_profiling(profile);
   auto t0 = std::chrono::steady_clock::now();
   sim.run_steps(steps);
   double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -81,5 +83,13 @@ int main(int argc, char** argv) {
               "gcc " __VERSION__,
 #endif
               agents, density, threads, steps, secs, rate, pairs);
+  if (profile) {
+    const StepProfile& pr = sim.profile();
+    double total = 0;
+    for (double x : pr.seconds) total += x;
+    for (int k = 0; k < StepProfile::kParts; ++k)
+      std::fprintf(stderr, "  %-12s %6.1f%%  %8.1f ns/agent-step\n", StepProfile::kNames[k], 100 * pr.seconds[k] / total,
+                   1e9 * pr.seconds[k] / (static_cast<double>(agents) * static_cast<double>(pr.steps)));
+  }
   return 0;
 }

@@ -5,22 +5,6 @@
 
 namespace crowdmpm {
 
-Stencil make_stencil(const Vec2& origin, double dx, int nx, int ny, const Vec2& x) {
-  Stencil s;
-  double gx = (x.x() - origin.x()) / dx, gy = (x.y() - origin.y()) / dx;
-  s.bx = std::clamp(static_cast<int>(std::floor(gx - 0.5)), 0, nx - 3);
-  s.by = std::clamp(static_cast<int>(std::floor(gy - 0.5)), 0, ny - 3);
-  s.fx = gx - s.bx;
-  s.fy = gy - s.by;
-  s.wx[0] = 0.5 * (1.5 - s.fx) * (1.5 - s.fx);
-  s.wx[1] = 0.75 - (s.fx - 1) * (s.fx - 1);
-  s.wx[2] = 0.5 * (s.fx - 0.5) * (s.fx - 0.5);
-  s.wy[0] = 0.5 * (1.5 - s.fy) * (1.5 - s.fy);
-  s.wy[1] = 0.75 - (s.fy - 1) * (s.fy - 1);
-  s.wy[2] = 0.5 * (s.fy - 0.5) * (s.fy - 0.5);
-  return s;
-}
-
 FieldFrame compute_fields(const World& w, const Grid& g, double min_density) {
   FieldFrame f;
   f.origin = g.origin;

@@ -21,12 +21,6 @@ struct FieldFrame {
 // density below min_density (persons/m^2) get pressure 0 so a lone particle does not paint a halo.
 FieldFrame compute_fields(const World& w, const Grid& g, double min_density = 0.25);
 
-// Per-cell quadratic B-spline weights of a particle: base node and 3 weights per axis.
-struct Stencil {
-  int bx, by;
-  double wx[3], wy[3];
-  double fx, fy;  // position in cells relative to the base node
-};
-Stencil make_stencil(const Vec2& origin, double dx, int nx, int ny, const Vec2& x);
+
 
 }  // namespace crowdmpm

@@ -5,6 +5,7 @@
 // over particles binned by their stencil base, not as a scatter with atomics.
 #include <vector>
 
+#include "engine/stencil.hpp"
 #include "engine/geometry.hpp"
 #include "engine/model.hpp"
 #include "engine/navigation.hpp"
@@ -51,20 +52,22 @@ struct Grid {
   std::vector<int> bin_start, order, base, cursor;
   std::vector<Vec2> momentum;
   std::vector<Mat2> affine, stress;
+  std::vector<Stencil> stencils;
 
   void init(const Geometry& geo, double cell);
   size_t nodes() const { return static_cast<size_t>(nx) * ny; }
   int node(int i, int j) const { return j * nx + i; }
 };
 
-// Cell lists for the pair traction, cell size >= the largest interaction range.
+// Cell lists for the pair traction: every pair within `range` lies within `span` cells.
 struct NeighbourGrid {
   Vec2 origin = Vec2::Zero();
   double h = 1;
-  double range = 0;  // interaction reach the cells were sized for (h >= range)
+  double range = 0;  // interaction reach the cells were sized for
+  int span = 1;      // cells searched on each side: ceil(range / h)
   int nx = 0, ny = 0;
   std::vector<int> start, order, cell, cursor;
-  void init(const Geometry& geo, double cell_size);
+  void init(const Geometry& geo, double reach, double min_cell = 0);
   void build(const World& w);
 };
 

@@ -81,6 +81,21 @@ double Shape::sdf(const Vec2& p) const {
   return 1e300;
 }
 
+bool Shape::contains(const Vec2& p) const {
+  if (p.x() < lo.x() || p.y() < lo.y() || p.x() > hi.x() || p.y() > hi.y()) return false;
+  if (kind != Kind::Polygon) return sdf(p) < 0;
+  bool inside = false;
+  const size_t n = points.size();
+  for (size_t i = 0, j = n - 1; i < n; j = i++) {
+    const Vec2& a = points[i];
+    const Vec2& b = points[j];
+    if ((a.y() > p.y()) != (b.y() > p.y()) && p.x() < (b.x() - a.x()) * (p.y() - a.y()) / (b.y() - a.y()) + a.x())
+      inside = !inside;
+  }
+  // On an edge counts as outside, as with sdf(p) < 0.
+  return inside && sdf(p) < 0;
+}
+
 double Shape::area() const {
   switch (kind) {
     case Kind::Circle: return M_PI * radius * radius;

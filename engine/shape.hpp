@@ -23,7 +23,7 @@ struct Shape {
   static Shape polyline(std::vector<Vec2> pts, double thickness);
 
   double sdf(const Vec2& p) const;
-  bool contains(const Vec2& p) const { return sdf(p) < 0; }
+  bool contains(const Vec2& p) const;  // strictly inside (bounding box, then even-odd test)
   double area() const;
   Vec2 centroid() const;
 };

@@ -1,6 +1,7 @@
 #include "engine/simulation.hpp"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <unordered_map>
 
@@ -313,8 +314,7 @@ void Simulation::spawn_sources() {
 void Simulation::init_neighbours(double reach) {
   // Bound the number of cells (huge venues): larger cells cost time, not correctness.
   const Vec2 ext = scenario_.geo.hi - scenario_.geo.lo;
-  neighbours_.init(scenario_.geo, std::max(reach, std::sqrt(ext.x() * ext.y() / 2e7)));
-  neighbours_.range = reach;
+  neighbours_.init(scenario_.geo, reach, std::sqrt(ext.x() * ext.y() / 2e7));
 }
 
 void Simulation::prepare_derived() {
@@ -324,19 +324,41 @@ void Simulation::prepare_derived() {
   kernel_traction(in, neighbours_, world_, pool_);
 }
 
+const char* const StepProfile::kNames[StepProfile::kParts] = {"drive", "neighbours", "traction", "p2g", "grid_update",
+                                                               "g2p", "project", "exits", "sources"};
+
 void Simulation::step() {
   StepInputs in{model_, scenario_.geo, navs_, behaviours_, forces_, scenario_.dt};
+  using clock = std::chrono::steady_clock;
+  auto t = profiling_ ? clock::now() : clock::time_point();
+  int part = 0;
+  auto mark = [&]() {
+    if (!profiling_) return;
+    auto now = clock::now();
+    profile_.seconds[part++] += std::chrono::duration<double>(now - t).count();
+    t = now;
+  };
   kernel_drive(in, world_, pool_);
+  mark();
   neighbours_.build(world_);
+  mark();
   kernel_traction(in, neighbours_, world_, pool_);
+  mark();
   kernel_p2g(in, world_, grid_, pool_);
+  mark();
   kernel_grid_update(in, grid_, pool_);
+  mark();
   kernel_g2p(in, grid_, world_, pool_);
+  mark();
   kernel_project(in, world_, pool_);
+  mark();
   ++steps_;
   check_finite();
   retire_at_exits();
+  mark();
   spawn_sources();
+  mark();
+  if (profiling_) ++profile_.steps;
 }
 
 void Simulation::run_steps(long n) {

@@ -10,6 +10,14 @@
 
 namespace crowdmpm {
 
+// Wall-clock seconds spent in each part of the step, accumulated while profiling is on.
+struct StepProfile {
+  static constexpr int kParts = 9;
+  static const char* const kNames[kParts];  // drive, neighbours, traction, p2g, grid, g2p, project, exits, sources
+  double seconds[kParts] = {0};
+  long steps = 0;
+};
+
 struct ExitEvent {
   EntityId id;
   int exit;    // index into geometry.exits
@@ -49,6 +57,8 @@ class Simulation {
   long spawned() const { return spawned_; }
   long pending_spawns() const;  // sources still to spawn (within their windows)
   int threads() const { return pool_.threads(); }
+  void set_profiling(bool on) { profiling_ = on; }
+  const StepProfile& profile() const { return profile_; }
 
   // Add one agent (C API, tests); returns its id. Behaviour: index into behaviours().
   EntityId add_agent(const AgentDef& def);
@@ -84,6 +94,8 @@ class Simulation {
   long steps_ = 0;
   long spawned_ = 0;
   double max_radius_ = 0, max_comfort_ = 0;  // over agents added so far (for the cell lists)
+  bool profiling_ = false;
+  StepProfile profile_;
 };
 
 }  // namespace crowdmpm

