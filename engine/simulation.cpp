@@ -241,7 +241,11 @@ void Simulation::place_group(size_t gi) {
     if (a < 2 * r) break;
     std::vector<Vec2> pts;
     const double row = a * std::sqrt(3.0) / 2;
-    Vec2 off(rng_.uniform() * a, rng_.uniform() * row);
+    // Draws in separate statements: the order of evaluation of function arguments is
+    // unspecified (GCC and Clang differ), and the stream must be consumed in one order.
+    const double off_x = rng_.uniform() * a;
+    const double off_y = rng_.uniform() * row;
+    const Vec2 off(off_x, off_y);
     int k = 0;
     for (double y = lo.y() + off.y() - row; y <= hi.y(); y += row, ++k)
       for (double x = lo.x() + off.x() - a + (k % 2) * a / 2; x <= hi.x(); x += a) {
@@ -291,8 +295,9 @@ void Simulation::spawn_sources() {
     while (source_accum_[gi] >= 1 && source_spawned_[gi] < g.max_count) {
       bool placed = false;
       for (int tries = 0; tries < 30 && !placed; ++tries) {
-        Vec2 p(g.region.lo.x() + rng_.uniform() * (g.region.hi.x() - g.region.lo.x()),
-               g.region.lo.y() + rng_.uniform() * (g.region.hi.y() - g.region.lo.y()));
+        const double ux = rng_.uniform();  // separate statements: see place_group
+        const double uy = rng_.uniform();
+        Vec2 p(g.region.lo.x() + ux * (g.region.hi.x() - g.region.lo.x()), g.region.lo.y() + uy * (g.region.hi.y() - g.region.lo.y()));
         if (!g.region.contains(p) || scenario_.geo.sdf(p) < model_.params.wall_clearance) continue;
         bool clear = true;
         for (size_t q = 0; q < world_.size() && clear; ++q)
