@@ -96,43 +96,45 @@ int Simulation::nav_for(const std::string& target) {
   return static_cast<int>(navs_.size() - 1);
 }
 
+// A goal behaviour towards an exit, a goal region or "nearest_exit". Agents stop inside a goal
+// region; exits retire them instead.
+Behaviour Simulation::goal_behaviour(const std::string& target) {
+  Behaviour b;
+  b.kind = Behaviour::Kind::Goal;
+  b.nav = nav_for(target);
+  const NamedShape* t = target == "nearest_exit" ? nullptr : scenario_.geo.find_target(target);
+  bool is_exit = false;
+  for (const auto& e : scenario_.geo.exits) is_exit = is_exit || &e == t;
+  b.target = (t && !is_exit) ? &t->shape : nullptr;
+  return b;
+}
+
+// Behaviour 0 is "none"; group g (groups, then sources) has behaviour g + 1. Behaviours refer to
+// navigation fields by index, so adding fields later (behaviour_for_target) is safe.
 void Simulation::build_behaviours() {
-  // navs_ must not reallocate after behaviours point into it: build all fields first.
-  for (const auto& g : scenario_.groups) {
-    if (g.behaviour.target.empty()) continue;
-    try {
-      nav_for(g.behaviour.target);
-    } catch (const Error& e) {
-      throw Error(g.behaviour.path + (g.behaviour.kind == BehaviourDef::Kind::Orbit ? ".around: " : ".target: ") + e.what());
-    }
-  }
-  behaviours_.push_back(Behaviour{});  // 0: none
+  behaviours_.push_back(Behaviour{});
   for (const auto& g : scenario_.groups) {
     Behaviour b;
     const BehaviourDef& d = g.behaviour;
-    switch (d.kind) {
-      case BehaviourDef::Kind::None: b.kind = Behaviour::Kind::None; break;
-      case BehaviourDef::Kind::Goal: {
-        b.kind = Behaviour::Kind::Goal;
-        b.nav = nav_for(d.target);
-        const NamedShape* t = d.target == "nearest_exit" ? nullptr : scenario_.geo.find_target(d.target);
-        bool is_exit = false;
-        for (const auto& e : scenario_.geo.exits) is_exit = is_exit || &e == t;
-        b.target = (t && !is_exit) ? &t->shape : nullptr;
-        break;
+    try {
+      switch (d.kind) {
+        case BehaviourDef::Kind::None: b.kind = Behaviour::Kind::None; break;
+        case BehaviourDef::Kind::Goal: b = goal_behaviour(d.target); break;
+        case BehaviourDef::Kind::Orbit:
+          b.kind = Behaviour::Kind::Orbit;
+          if (!d.target.empty()) b.nav = nav_for(d.target);
+          b.point = d.point;
+          b.sign = d.sign;
+          b.inward = d.inward;
+          break;
+        case BehaviourDef::Kind::Attract:
+          b.kind = Behaviour::Kind::Attract;
+          b.point = d.point;
+          b.arrive_radius = d.arrive_radius;
+          break;
       }
-      case BehaviourDef::Kind::Orbit:
-        b.kind = Behaviour::Kind::Orbit;
-        if (!d.target.empty()) b.nav = nav_for(d.target);
-        b.point = d.point;
-        b.sign = d.sign;
-        b.inward = d.inward;
-        break;
-      case BehaviourDef::Kind::Attract:
-        b.kind = Behaviour::Kind::Attract;
-        b.point = d.point;
-        b.arrive_radius = d.arrive_radius;
-        break;
+    } catch (const Error& e) {
+      throw Error(d.path + (d.kind == BehaviourDef::Kind::Orbit ? ".around: " : ".target: ") + e.what());
     }
     group_behaviour_.push_back(static_cast<int>(behaviours_.size()));
     behaviours_.push_back(b);
@@ -147,15 +149,7 @@ int Simulation::behaviour_for_target(const std::string& target) {
       for (size_t b = 0; b < behaviours_.size(); ++b)
         if (behaviours_[b].kind == Behaviour::Kind::Goal && behaviours_[b].nav == static_cast<int>(i))
           return static_cast<int>(b);
-  // A new field may reallocate navs_: behaviours refer to fields by index, so that is safe.
-  Behaviour b;
-  b.kind = Behaviour::Kind::Goal;
-  b.nav = nav_for(target);
-  const NamedShape* t = scenario_.geo.find_target(target);
-  bool is_exit = false;
-  for (const auto& e : scenario_.geo.exits) is_exit = is_exit || &e == t;
-  b.target = (t && !is_exit) ? &t->shape : nullptr;
-  behaviours_.push_back(b);
+  behaviours_.push_back(goal_behaviour(target));
   return static_cast<int>(behaviours_.size() - 1);
 }
 

@@ -67,6 +67,7 @@ class Simulation {
 
  private:
   void build_behaviours();
+  Behaviour goal_behaviour(const std::string& target);
   int nav_for(const std::string& target);
   void place_group(size_t gi);
   void spawn_sources();
