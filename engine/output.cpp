@@ -13,32 +13,6 @@ namespace crowdmpm {
 
 namespace fs = std::filesystem;
 
-TrajectoryWriter::TrajectoryWriter(const std::string& path, double framerate, const std::string& comment) : path_(path) {
-  f_ = std::fopen(path.c_str(), "w");
-  if (!f_) throw Error(path + ": cannot open for writing: " + std::strerror(errno));
-  std::fprintf(f_, "# framerate: %.10g\n# unit: m\n# %s\n# id frame x y z\n", framerate, comment.c_str());
-}
-
-TrajectoryWriter::~TrajectoryWriter() {
-  if (f_) std::fclose(f_);
-}
-
-void TrajectoryWriter::write_frame(const World& w, long frame) {
-  std::vector<size_t> order(w.size());
-  for (size_t i = 0; i < order.size(); ++i) order[i] = i;
-  std::sort(order.begin(), order.end(), [&](size_t a, size_t b) { return w.id[a] < w.id[b]; });
-  for (size_t p : order)
-    std::fprintf(f_, "%llu %ld %.5f %.5f 0\n", static_cast<unsigned long long>(w.id[p]), frame, w.x[p].x(), w.x[p].y());
-}
-
-void TrajectoryWriter::close() {
-  if (f_ && std::fclose(f_) != 0) {
-    f_ = nullptr;
-    throw Error(path_ + ": write failed (disk full?)");
-  }
-  f_ = nullptr;
-}
-
 NpyWriter::NpyWriter(const std::string& path, int rows, int cols, int comps)
     : path_(path), rows_(rows), cols_(cols), comps_(comps) {
   f_ = std::fopen(path.c_str(), "wb");

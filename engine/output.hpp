@@ -8,21 +8,9 @@
 #include <vector>
 
 #include "engine/metrics.hpp"
+#include "engine/trajectory.hpp"
 
 namespace crowdmpm {
-
-// PeTrack/JuPedSim trajectory text: "# framerate: N" header, then "id frame x y z" rows (metres).
-class TrajectoryWriter {
- public:
-  TrajectoryWriter(const std::string& path, double framerate, const std::string& comment);
-  ~TrajectoryWriter();
-  void write_frame(const World& w, long frame);
-  void close();
-
- private:
-  std::FILE* f_ = nullptr;
-  std::string path_;
-};
 
 // Streams frames of a float32 array of shape (frames, rows, cols[, comps]) to a .npy file and
 // fixes the frame count in the header on close.

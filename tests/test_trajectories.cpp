@@ -1,0 +1,115 @@
+// Trajectory reading (PeTrack/JuPedSim text): units, headers, errors, and every real recording
+// in ../shared/data/real against its manifest (skipped, saying so, when the data is absent).
+#include <catch2/catch.hpp>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <set>
+
+#include "engine/trajectory.hpp"
+#include "support.hpp"
+
+using namespace crowdmpm;
+
+TEST_CASE("trajectory text: units, comments, sorting", "[trajectories]") {
+  const char* text =
+      "# framerate: 16\n# id frame x/cm y/cm z/cm\n"
+      "2 5 100 -250 170\n1 5 50 25\n\n1 4 40 20 170\r\n";
+  TrajectorySet t = TrajectorySet::parse(text, "mem.txt");
+  CHECK(t.framerate == 16);
+  REQUIRE(t.points.size() == 3);
+  CHECK(t.points[0].frame == 4);
+  CHECK(t.points[0].x == Approx(0.4));
+  CHECK(t.points[2].id == 2);
+  CHECK(t.points[2].y == Approx(-2.5));
+  CHECK(t.person_count() == 2);
+  auto [b, e] = t.frame(5);
+  CHECK(e - b == 2);
+  CHECK(t.duration() == Approx(1 / 16.0));
+  CHECK(TrajectorySet::parse("# unit: mm\n1 0 1000 0\n", "u", 10).points[0].x == Approx(1));
+}
+
+TEST_CASE("trajectory text: errors name file and line", "[trajectories]") {
+  CHECK_THROWS_WITH(TrajectorySet::parse("# framerate: 10\n1 0 1.0\n", "a.txt"), Catch::Contains("a.txt:2: expected \"id frame x y [z]\""));
+  CHECK_THROWS_WITH(TrajectorySet::parse("# framerate: 10\n1 0 1.0 nan\n", "a.txt"), Catch::Contains("a.txt:2: \"nan\" is not a finite number"));
+  CHECK_THROWS_WITH(TrajectorySet::parse("# framerate: 10\n1 0 1.0 abc\n", "a.txt"), Catch::Contains("\"abc\" is not a number"));
+  CHECK_THROWS_WITH(TrajectorySet::parse("1 0 1 2\n", "b.txt"), Catch::Contains("b.txt: no \"# framerate: N\" header"));
+  CHECK_THROWS_WITH(TrajectorySet::parse("# framerate: 10\n1 0 1 2\n1 0 3 4\n", "c.txt"), Catch::Contains("person 1 appears twice in frame 0"));
+  CHECK_THROWS_WITH(TrajectorySet::parse("# framerate: 10\n# unit: furlong\n", "d.txt"), Catch::Contains("d.txt:2: unknown unit"));
+  CHECK_THROWS_WITH(TrajectorySet::parse("# framerate: 10\n1.5 0 1 2\n", "e.txt"), Catch::Contains("whole numbers"));
+}
+
+TEST_CASE("written trajectories read back", "[trajectories]") {
+  auto path = (std::filesystem::temp_directory_path() / "crowdmpm_traj_roundtrip.txt").string();
+  ScenarioDef s = ScenarioDef::load(test::scenario_path("drill"));
+  Simulation sim(s, test::model_of(s), 1);
+  {
+    TrajectoryWriter w(path, s.output_rate, "round trip");
+    w.write_frame(sim.world(), 0);
+    sim.run_steps(10);
+    w.write_frame(sim.world(), 1);
+    w.close();
+  }
+  TrajectorySet t = TrajectorySet::read(path);
+  CHECK(t.framerate == s.output_rate);
+  CHECK(t.person_count() == sim.world().size());
+  auto [b, e] = t.frame(1);
+  REQUIRE(e - b == static_cast<long>(sim.world().size()));
+  long i = sim.world().index_of(static_cast<EntityId>(b->id));
+  REQUIRE(i >= 0);
+  CHECK(b->x == Approx(sim.world().x[static_cast<size_t>(i)].x()).margin(1e-5));
+}
+
+namespace {
+std::vector<std::string> split_csv(const std::string& line) {
+  std::vector<std::string> out(1);
+  bool quoted = false;
+  for (size_t i = 0; i < line.size(); ++i) {
+    char c = line[i];
+    if (c == '"') {
+      if (quoted && i + 1 < line.size() && line[i + 1] == '"') { out.back() += '"'; ++i; }
+      else quoted = !quoted;
+    } else if (c == ',' && !quoted) out.emplace_back();
+    else out.back() += c;
+  }
+  return out;
+}
+}  // namespace
+
+TEST_CASE("every real recording reads with the counts its manifest states", "[trajectories][data]") {
+  const std::string data = test::shared_data_dir();
+  if (data.empty()) {
+    WARN("skipped: ../shared/data is absent, no real recordings to read");
+    return;
+  }
+  std::ifstream manifest(data + "/real/manifest.csv");
+  REQUIRE(manifest);
+  std::string line;
+  std::getline(manifest, line);
+  auto header = split_csv(line);
+  auto col = [&](const std::string& name) {
+    for (size_t i = 0; i < header.size(); ++i)
+      if (header[i] == name) return i;
+    FAIL("manifest has no column " << name);
+    return size_t{0};
+  };
+  const size_t c_dataset = col("dataset"), c_file = col("file"), c_kind = col("kind"), c_fps = col("fps"),
+               c_people = col("pedestrians"), c_rows = col("rows"), c_fmin = col("frame_min"), c_fmax = col("frame_max");
+  int files = 0;
+  while (std::getline(manifest, line)) {
+    auto f = split_csv(line);
+    if (f.size() <= c_fmax || f[c_kind] != "trajectory") continue;
+    const std::string path = data + "/real/" + f[c_dataset] + "/" + f[c_file];
+    INFO(path);
+    TrajectorySet t = TrajectorySet::read(path);
+    CHECK(t.framerate == std::stod(f[c_fps]));
+    CHECK(t.person_count() == std::stoul(f[c_people]));
+    CHECK(t.points.size() == std::stoul(f[c_rows]));
+    CHECK(t.frame_min() == std::stol(f[c_fmin]));
+    CHECK(t.frame_max() == std::stol(f[c_fmax]));
+    std::printf("trajectories %-32s %4zu people %7zu rows %6.1f s at %g fps\n", f[c_file].c_str(), t.person_count(),
+                t.points.size(), t.duration(), t.framerate);
+    ++files;
+  }
+  CHECK(files >= 12);
+}
