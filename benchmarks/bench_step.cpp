@@ -3,6 +3,9 @@
 // directions. Prints one CSV row (see benchmarks/README.md for recorded results).
 //
 //   bench_step [--agents N] [--density D] [--threads T] [--steps S] [--warmup W] [--header]
+//              [--profile] [--cost-model]
+// --profile prints each kernel's share of the step time; --cost-model adds flops and bytes per
+// agent-step and the fraction of this machine's measured limits (cost_model.hpp).
 #include <sys/utsname.h>
 
 #include <chrono>
@@ -12,6 +15,7 @@
 #include <cstring>
 #include <string>
 
+#include "cost_model.hpp"
 #include "engine/simulation.hpp"
 
 using namespace crowdmpm;
@@ -20,7 +24,7 @@ int main(int argc, char** argv) {
   long agents = 10000, steps = 200, warmup = 20;
   double density = 5;
   int threads = 1;
-  bool header = false, profile = false;
+  bool header = false, profile = false, cost_model = false;
   for (int i = 1; i < argc; ++i) {
     std::string a = argv[i];
     auto next = [&]() -> const char* {
@@ -34,6 +38,7 @@ int main(int argc, char** argv) {
     else if (a == "--warmup") warmup = std::atol(next());
     else if (a == "--header") header = true;
     else if (a == "--profile") profile = true;
+    else if (a == "--cost-model") profile = cost_model = true;
     else { std::fprintf(stderr, "unknown option %s\n", a.c_str()); return 2; }
   }
   if (agents < 1 || !(density > 0 && density <= 7) || threads < 1 || steps < 1) {
@@ -87,9 +92,33 @@ int main(int argc, char** argv) {
     const StepProfile& pr = sim.profile();
     double total = 0;
     for (double x : pr.seconds) total += x;
-    for (int k = 0; k < StepProfile::kParts; ++k)
-      std::fprintf(stderr, "  %-12s %6.1f%%  %8.1f ns/agent-step\n", StepProfile::kNames[k], 100 * pr.seconds[k] / total,
-                   1e9 * pr.seconds[k] / (static_cast<double>(agents) * static_cast<double>(pr.steps)));
+    std::vector<bench::KernelCost> costs;
+    bench::MachineLimits lim{};
+    if (cost_model) {
+      costs = bench::kernel_costs(sim, sim.pair_stats());
+      lim = bench::probe_machine(threads);
+      std::fprintf(stderr, "machine limits (%d thread%s): compute %.2f GFLOP/s (1 thread %.2f), triad bandwidth %.2f GB/s (1 thread %.2f)\n",
+                   threads, threads > 1 ? "s" : "", lim.gflops_n / 1e9, lim.gflops_1 / 1e9, lim.gbytes_n / 1e9, lim.gbytes_1 / 1e9);
+      PairStats ps = sim.pair_stats();
+      std::fprintf(stderr, "neighbours per agent: %.1f candidates, %.1f within reach\n",
+                   static_cast<double>(ps.candidates) / static_cast<double>(agents), static_cast<double>(ps.pairs) / static_cast<double>(agents));
+      std::fprintf(stderr, "%-12s %6s %9s %8s %8s %8s %7s %7s %7s\n", "kernel", "share", "ns/a-s", "flop/a-s", "B/a-s",
+                   "GFLOP/s", "GB/s", "%peakF", "%peakB");
+    }
+    for (int k = 0; k < StepProfile::kParts; ++k) {
+      const double ns = 1e9 * pr.seconds[k] / (static_cast<double>(agents) * static_cast<double>(pr.steps));
+      const bench::KernelCost* c = nullptr;
+      for (const auto& kc : costs)
+        if (kc.name == StepProfile::kNames[k]) c = &kc;
+      if (!c) {
+        std::fprintf(stderr, "  %-12s %6.1f%% %9.1f\n", StepProfile::kNames[k], 100 * pr.seconds[k] / total, ns);
+        continue;
+      }
+      const double gf = c->flops / ns, gb = c->bytes / ns;  // per ns = G per s
+      std::fprintf(stderr, "%-12s %5.1f%% %9.1f %8.0f %8.0f %8.2f %7.2f %6.1f%% %6.1f%%\n", StepProfile::kNames[k],
+                   100 * pr.seconds[k] / total, ns, c->flops, c->bytes, gf, gb, 100 * gf * 1e9 / lim.gflops_n,
+                   100 * gb * 1e9 / lim.gbytes_n);
+    }
   }
   return 0;
 }

@@ -18,6 +18,12 @@ struct StepProfile {
   long steps = 0;
 };
 
+// Neighbour statistics of the current state, for cost models.
+struct PairStats {
+  long candidates = 0;  // particle pairs examined in the cell lists
+  long pairs = 0;       // of which within the interaction reach (pair traction evaluated)
+};
+
 struct ExitEvent {
   EntityId id;
   int exit;    // index into geometry.exits
@@ -59,6 +65,7 @@ class Simulation {
   int threads() const { return pool_.threads(); }
   void set_profiling(bool on) { profiling_ = on; }
   const StepProfile& profile() const { return profile_; }
+  PairStats pair_stats() const;
 
   // Add one agent (C API, tests); returns its id. Behaviour: index into behaviours().
   EntityId add_agent(const AgentDef& def);
