@@ -6,7 +6,13 @@
 #include <string>
 #include <vector>
 
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+
 #include "engine/output.hpp"
+#include "engine/predict.hpp"
+#include "engine/render.hpp"
 
 using namespace crowdmpm;
 
@@ -20,6 +26,11 @@ const char* kUsage =
     "                      run a scenario and write trajectories, fields, pictures, a video\n"
     "                      and metrics.json to DIR\n"
     "  validate SCENARIO [--model MODEL]\n"
+    "                      check a scenario (and model) and print what it contains\n"
+    "  predict --scenario S --trajectories T [--model M] [--observe S] [--horizon S]\n"
+    "          [--stride S] [--windows N] [--threads N] [--out DIR]\n"
+    "                      roll recorded states forward and report ADE/FDE against the\n"
+    "                      recording, for constant velocity and the crowd model\n"
     "                      check a scenario (and model) and print what it contains\n"
     "  help [COMMAND]      show help\n"
     "\n"
@@ -43,6 +54,27 @@ const char* kSimulateHelp =
     "  --duration S       override time.duration (seconds)\n"
     "  --quiet            no progress bar\n";
 
+const char* kPredictHelp =
+    "usage: crowdmpm predict --scenario S --trajectories T [options]\n"
+    "\n"
+    "Takes the recorded state (positions; velocities over the last 0.5 s) at window starts\n"
+    "every --stride seconds after the first --observe seconds, rolls it forward --horizon\n"
+    "seconds with constant velocity and with the crowd model in the scenario's venue, and\n"
+    "prints average and final displacement errors (ADE/FDE, m) at every whole second.\n"
+    "People are compared only while both the recording and the prediction have them.\n"
+    "\n"
+    "options:\n"
+    "  --scenario S       crowdmpm-scenario JSON with the recording's geometry (its first\n"
+    "                     group's behaviour is given to the observed people)\n"
+    "  --trajectories T   PeTrack text file (id frame x y [z], '# framerate:' header)\n"
+    "  --model M          crowdmpm-model JSON (default: the scenario's, else built-in)\n"
+    "  --observe S        seconds of recording before the first window (default 2)\n"
+    "  --horizon S        seconds to predict (default 4)\n"
+    "  --stride S         seconds between window starts (default: the horizon)\n"
+    "  --windows N        at most N windows (default all)\n"
+    "  --threads N        worker threads (default 1)\n"
+    "  --out DIR          write prediction.json and prediction.png (first window's paths)\n";
+
 const char* kValidateHelp =
     "usage: crowdmpm validate SCENARIO [--model MODEL]\n"
     "\n"
@@ -51,7 +83,9 @@ const char* kValidateHelp =
 
 struct Args {
   std::vector<std::string> positional;
-  std::string out, model;
+  std::string out, model, scenario, trajectories;
+  double observe = 2, horizon = 4, stride = -1;
+  int windows = 0;
   int threads = 1;
   double duration = -1;
   bool quiet = false, help = false;
@@ -74,6 +108,21 @@ Args parse_args(int argc, char** argv, int first) {
     else if (s == "--out") a.out = value("--out");
     else if (s == "--model") a.model = value("--model");
     else if (s == "--quiet") a.quiet = true;
+    else if (s == "--scenario") a.scenario = value("--scenario");
+    else if (s == "--trajectories") a.trajectories = value("--trajectories");
+    else if (s == "--observe" || s == "--horizon" || s == "--stride") {
+      std::string v = value(s.c_str());
+      char* end = nullptr;
+      double d = std::strtod(v.c_str(), &end);
+      if (*end || !(d > 0) || d > 1e5) usage_error(s + " must be a number of seconds > 0, got '" + v + "'");
+      (s == "--observe" ? a.observe : s == "--horizon" ? a.horizon : a.stride) = d;
+    } else if (s == "--windows") {
+      std::string v = value("--windows");
+      char* end = nullptr;
+      long n = std::strtol(v.c_str(), &end, 10);
+      if (*end || n < 1 || n > 1000000) usage_error("--windows must be a whole number >= 1, got '" + v + "'");
+      a.windows = static_cast<int>(n);
+    }
     else if (s == "--threads") {
       std::string v = value("--threads");
       char* end = nullptr;
@@ -128,6 +177,71 @@ int cmd_simulate(const Args& a) {
   return 0;
 }
 
+int cmd_predict(const Args& a) {
+  if (a.help) { std::fputs(kPredictHelp, stdout); return 0; }
+  if (a.scenario.empty() || a.trajectories.empty()) usage_error("predict needs --scenario and --trajectories");
+  if (!a.positional.empty()) usage_error("predict takes no positional arguments (got '" + a.positional[0] + "')");
+  ScenarioDef s = ScenarioDef::load(a.scenario);
+  Model m = !a.model.empty() ? Model::load(a.model) : s.model ? *s.model : Model::default_model();
+  TrajectorySet t = TrajectorySet::read(a.trajectories);
+  PredictOptions o;
+  o.observe = a.observe;
+  o.horizon = a.horizon;
+  o.stride = a.stride > 0 ? a.stride : a.horizon;
+  o.threads = a.threads;
+  o.max_windows = a.windows;
+  if (o.observe + o.horizon > t.duration())
+    usage_error("--observe + --horizon (" + format_number(o.observe + o.horizon) + " s) exceed the recording (" +
+                format_number(t.duration()) + " s)");
+  std::vector<PredictionReport> reports = {
+      evaluate_predictor("constant velocity", t, o, constant_velocity_predictor()),
+      evaluate_predictor(std::string("crowd model (") + material_name(m.material) + ")", t, o, simulation_predictor(s, m, a.threads))};
+  std::printf("%s: %zu people, %.1f s at %g fps; %ld windows of %g s\n", a.trajectories.c_str(), t.person_count(),
+              t.duration(), t.framerate, reports[0].windows, o.horizon);
+  std::printf("%-28s", "method");
+  for (const auto& h : reports[0].horizons) std::printf("   ADE@%gs  FDE@%gs", h.horizon, h.horizon);
+  std::printf("\n");
+  for (const auto& r : reports) {
+    std::printf("%-28s", r.method.c_str());
+    for (const auto& h : r.horizons) std::printf("  %7.3f  %7.3f", h.ade, h.fde);
+    std::printf("\n");
+  }
+  if (!a.out.empty()) {
+    std::filesystem::create_directories(a.out);
+    json j = {{"scenario", a.scenario}, {"trajectories", a.trajectories}, {"observe_s", o.observe},
+              {"horizon_s", o.horizon}, {"stride_s", o.stride}, {"units", "metres"}, {"methods", json::array()}};
+    for (const auto& r : reports) j["methods"].push_back(report_to_json(r));
+    std::ofstream(a.out + "/prediction.json") << j.dump(2) << "\n";
+    // Paths of the first window: recorded, constant velocity, model.
+    long f0 = t.frame_min() + std::lround(o.observe * t.framerate);
+    ObservedState st = observe_at(t, f0, o.velocity_window);
+    std::vector<double> times;
+    for (long k = 1; k <= std::lround(o.horizon * t.framerate); ++k) times.push_back(static_cast<double>(k) / t.framerate);
+    auto as_paths = [&](const std::vector<std::vector<Vec2>>& per_time) {
+      std::vector<std::vector<Vec2>> paths(st.ids.size());
+      for (size_t i = 0; i < st.ids.size(); ++i) {
+        paths[i].push_back(st.x[i]);
+        for (const auto& row : per_time) paths[i].push_back(row[i]);
+      }
+      return paths;
+    };
+    std::vector<std::vector<Vec2>> recorded(times.size(), std::vector<Vec2>(st.ids.size(), Vec2(NAN, NAN)));
+    for (size_t k = 0; k < times.size(); ++k) {
+      auto [b, e] = t.frame(f0 + static_cast<long>(k) + 1);
+      for (auto p = b; p != e; ++p)
+        for (size_t i = 0; i < st.ids.size(); ++i)
+          if (st.ids[i] == p->id) recorded[k][i] = Vec2(p->x, p->y);
+    }
+    std::vector<PathSet> sets = {{"recorded", 60, 160, 60, as_paths(recorded)},
+                                 {"const. velocity", 200, 120, 40, as_paths(constant_velocity_predictor()(st, times))},
+                                 {"crowd model", 40, 40, 210, as_paths(simulation_predictor(s, m, a.threads)(st, times))}};
+    write_paths_png(a.out + "/prediction.png", s.geo, View::fit(s.geo, s.outputs.pixels_per_metre), sets,
+                    "prediction from t = " + format_number(o.observe) + " s, " + format_number(o.horizon) + " s ahead");
+    std::printf("wrote %s/prediction.json and %s/prediction.png\n", a.out.c_str(), a.out.c_str());
+  }
+  return 0;
+}
+
 int cmd_validate(const Args& a) {
   if (a.help) { std::fputs(kValidateHelp, stdout); return 0; }
   if (a.positional.size() != 1) usage_error("validate needs exactly one SCENARIO file");
@@ -152,12 +266,13 @@ int main(int argc, char** argv) {
   try {
     if (cmd == "help" || cmd == "--help" || cmd == "-h") {
       std::string sub = argc > 2 ? argv[2] : "";
-      std::fputs(sub == "simulate" ? kSimulateHelp : sub == "validate" ? kValidateHelp : kUsage, stdout);
+      std::fputs(sub == "simulate" ? kSimulateHelp : sub == "validate" ? kValidateHelp : sub == "predict" ? kPredictHelp : kUsage, stdout);
       return 0;
     }
     Args a = parse_args(argc, argv, 2);
     if (cmd == "simulate") return cmd_simulate(a);
     if (cmd == "validate") return cmd_validate(a);
+    if (cmd == "predict") return cmd_predict(a);
     usage_error("unknown command '" + cmd + "'");
   } catch (const Error& e) {
     std::fprintf(stderr, "%scrowdmpm: error: %s\n", g_progress_line ? "\n" : "", e.what());

@@ -33,7 +33,8 @@ cv::Vec3b colour(double t) {
 }
 
 cv::Mat canvas(const View& v) {
-  return cv::Mat(v.height() + kTitle + kPad, v.width() + 2 * kPad + kBar, CV_8UC3, cv::Scalar(255, 255, 255));
+  // At least 480 px wide so that titles and legends of tall, narrow venues fit.
+  return cv::Mat(v.height() + kTitle + kPad, std::max(480, v.width() + 2 * kPad + kBar), CV_8UC3, cv::Scalar(255, 255, 255));
 }
 
 void draw_shape(cv::Mat& img, const View& v, const Shape& s, const cv::Scalar& fill, const cv::Scalar& edge, bool filled) {
@@ -132,6 +133,29 @@ void write_field_png(const std::string& path, const Geometry& geo, const View& v
     }
   draw_geometry(img, v, geo);
   draw_colour_bar(img, v, vmin, vmax, unit);
+  title(img, text);
+  write_png(path, img);
+}
+
+void write_paths_png(const std::string& path, const Geometry& geo, const View& v, const std::vector<PathSet>& sets,
+                     const std::string& text) {
+  cv::Mat img = canvas(v);
+  draw_geometry(img, v, geo);
+  int legend_y = kTitle + 16;
+  for (const auto& set : sets) {
+    cv::Scalar c(set.b, set.g, set.r);
+    for (const auto& poly : set.paths) {
+      std::vector<cv::Point> pts;
+      for (const auto& q : poly)
+        if (q.allFinite()) pts.push_back(to_px(v, q));
+      if (pts.size() >= 2) cv::polylines(img, pts, false, c, 1, cv::LINE_AA);
+      if (!pts.empty()) cv::circle(img, pts.back(), 2, c, cv::FILLED, cv::LINE_AA);
+    }
+    int x0 = v.width() + 2 * kPad + 4;
+    cv::line(img, cv::Point(x0, legend_y), cv::Point(x0 + 14, legend_y), c, 2);
+    cv::putText(img, set.label, cv::Point(x0 + 18, legend_y + 4), cv::FONT_HERSHEY_SIMPLEX, 0.35, cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
+    legend_y += 16;
+  }
   title(img, text);
   write_png(path, img);
 }

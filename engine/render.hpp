@@ -25,6 +25,15 @@ void write_field_png(const std::string& path, const Geometry& geo, const View& v
                      const std::vector<double>& values, double vmin, double vmax, const std::string& title,
                      const std::string& unit);
 
+// Paths (polylines of positions) over the venue, each set in its colour (B, G, R), with a legend.
+struct PathSet {
+  std::string label;
+  int b, g, r;
+  std::vector<std::vector<Vec2>> paths;
+};
+void write_paths_png(const std::string& path, const Geometry& geo, const View& view, const std::vector<PathSet>& sets,
+                     const std::string& title);
+
 class ParticleVideo {
  public:
   ParticleVideo(const std::string& path, const Geometry& geo, const View& view, double fps, double pressure_max);

@@ -69,6 +69,8 @@ class Simulation {
 
   // Add one agent (C API, tests); returns its id. Behaviour: index into behaviours().
   EntityId add_agent(const AgentDef& def);
+  // Whether an agent may stand at p: inside the domain and outside every solid.
+  bool geo_ok(const Vec2& p) const { return scenario_.geo.sdf(p) >= 0; }
   const std::vector<Behaviour>& behaviours() const { return behaviours_; }
   int behaviour_for_target(const std::string& target);  // goal behaviour to an exit/goal id
 

@@ -1,0 +1,147 @@
+#include "engine/predict.hpp"
+
+#include <cmath>
+#include <limits>
+#include <unordered_map>
+
+namespace crowdmpm {
+
+ObservedState observe_at(const TrajectorySet& t, long frame, double velocity_window) {
+  ObservedState s;
+  s.frame = frame;
+  const long back = std::max(1L, std::lround(velocity_window * t.framerate));
+  auto [b0, e0] = t.frame(frame - back);
+  std::unordered_map<long, Vec2> before;
+  for (auto p = b0; p != e0; ++p) before[p->id] = Vec2(p->x, p->y);
+  auto [b, e] = t.frame(frame);
+  for (auto p = b; p != e; ++p) {
+    auto it = before.find(p->id);
+    if (it == before.end()) continue;  // too little history for a velocity
+    Vec2 x(p->x, p->y);
+    s.ids.push_back(p->id);
+    s.x.push_back(x);
+    s.v.push_back((x - it->second) * (t.framerate / static_cast<double>(back)));
+  }
+  return s;
+}
+
+PredictionReport evaluate_predictor(const std::string& method, const TrajectorySet& t, const PredictOptions& o,
+                                    const Predictor& predict) {
+  PredictionReport r;
+  r.method = method;
+  const int seconds = std::max(1, static_cast<int>(std::floor(o.horizon + 1e-9)));
+  std::vector<double> times;  // every recorded frame up to the horizon
+  const long horizon_frames = std::lround(o.horizon * t.framerate);
+  for (long k = 1; k <= horizon_frames; ++k) times.push_back(static_cast<double>(k) / t.framerate);
+  std::vector<double> ade_sum(static_cast<size_t>(seconds), 0), fde_sum(static_cast<size_t>(seconds), 0);
+  std::vector<long> ade_n(static_cast<size_t>(seconds), 0), fde_n(static_cast<size_t>(seconds), 0);
+  const long stride = std::max(1L, std::lround(o.stride * t.framerate));
+  for (long f0 = t.frame_min() + std::lround(o.observe * t.framerate); f0 + horizon_frames <= t.frame_max(); f0 += stride) {
+    if (o.max_windows > 0 && r.windows >= o.max_windows) break;
+    ObservedState s = observe_at(t, f0, o.velocity_window);
+    if (s.ids.empty()) continue;
+    std::vector<std::vector<Vec2>> pred = predict(s, times);
+    std::unordered_map<long, size_t> index;
+    for (size_t i = 0; i < s.ids.size(); ++i) index[s.ids[i]] = i;
+    // Per agent, running sum of errors up to each time.
+    std::vector<double> err_sum(s.ids.size(), 0);
+    std::vector<long> err_n(s.ids.size(), 0);
+    for (size_t k = 0; k < times.size(); ++k) {
+      auto [b, e] = t.frame(f0 + static_cast<long>(k) + 1);
+      for (auto p = b; p != e; ++p) {
+        auto it = index.find(p->id);
+        if (it == index.end()) continue;
+        const Vec2& x = pred[k][it->second];
+        if (!x.allFinite()) continue;
+        double err = (x - Vec2(p->x, p->y)).norm();
+        err_sum[it->second] += err;
+        ++err_n[it->second];
+        // At whole seconds: FDE sample, and ADE over everything so far for this agent.
+        double tk = times[k];
+        int sec = static_cast<int>(std::lround(tk));
+        if (std::abs(tk - sec) < 0.5 / t.framerate && sec >= 1 && sec <= seconds) {
+          fde_sum[static_cast<size_t>(sec - 1)] += err;
+          ++fde_n[static_cast<size_t>(sec - 1)];
+          ade_sum[static_cast<size_t>(sec - 1)] += err_sum[it->second] / static_cast<double>(err_n[it->second]);
+          ++ade_n[static_cast<size_t>(sec - 1)];
+        }
+      }
+    }
+    ++r.windows;
+  }
+  for (int sidx = 0; sidx < seconds; ++sidx) {
+    HorizonError h;
+    h.horizon = sidx + 1;
+    h.samples = fde_n[static_cast<size_t>(sidx)];
+    h.ade = ade_n[static_cast<size_t>(sidx)] ? ade_sum[static_cast<size_t>(sidx)] / static_cast<double>(ade_n[static_cast<size_t>(sidx)]) : std::nan("");
+    h.fde = h.samples ? fde_sum[static_cast<size_t>(sidx)] / static_cast<double>(h.samples) : std::nan("");
+    r.horizons.push_back(h);
+  }
+  return r;
+}
+
+Predictor constant_velocity_predictor() {
+  return [](const ObservedState& s, const std::vector<double>& times) {
+    std::vector<std::vector<Vec2>> out(times.size());
+    for (size_t k = 0; k < times.size(); ++k)
+      for (size_t i = 0; i < s.x.size(); ++i) out[k].push_back(s.x[i] + times[k] * s.v[i]);
+    return out;
+  };
+}
+
+Predictor simulation_predictor(const ScenarioDef& scenario, const Model& model, int threads) {
+  if (scenario.groups.empty()) throw Error(scenario.source + ": prediction needs a group whose behaviour the observed people follow");
+  ScenarioDef base = scenario;
+  for (auto& g : base.groups) {
+    if (g.is_source) g.max_count = 0;
+    else g.count = 0;
+  }
+  return [base, model, threads](const ObservedState& s, const std::vector<double>& times) {
+    ScenarioDef sc = base;
+    sc.duration = 1e6;
+    sc.stop_when_empty = false;
+    Simulation sim(sc, model, threads);
+    const double clearance = model.params.wall_clearance;
+    std::vector<EntityId> ids;
+    for (size_t i = 0; i < s.x.size(); ++i) {
+      AgentDef a;
+      Vec2 x = s.x[i];
+      for (int it = 0; it < 8 && sc.geo.sdf(x) < clearance; ++it) {
+        Vec2 n = sc.geo.normal(x);
+        if (n.squaredNorm() == 0) break;
+        x += (clearance - sc.geo.sdf(x) + 1e-6) * n;
+      }
+      a.position = x;
+      a.velocity = s.v[i];
+      a.body_radius = model.params.body_radius;
+      a.comfort_distance = model.params.comfort_distance;
+      a.desired_speed = base.groups[0].desired_speed;
+      a.behaviour = 1;  // the first group's behaviour
+      a.group = 0;
+      ids.push_back(sim.geo_ok(x) ? sim.add_agent(a) : 0);
+    }
+    std::vector<std::vector<Vec2>> out(times.size());
+    const double nan = std::numeric_limits<double>::quiet_NaN();
+    double t = 0;
+    for (size_t k = 0; k < times.size(); ++k) {
+      long steps = std::lround((times[k] - t) / sc.dt);
+      sim.run_steps(steps);
+      t += static_cast<double>(steps) * sc.dt;
+      for (EntityId id : ids) {
+        long i = id ? sim.world().index_of(id) : -1;
+        out[k].push_back(i >= 0 ? sim.world().x[static_cast<size_t>(i)] : Vec2(nan, nan));
+      }
+    }
+    return out;
+  };
+}
+
+json report_to_json(const PredictionReport& r) {
+  json h = json::array();
+  for (const auto& e : r.horizons)
+    h.push_back({{"horizon_s", e.horizon}, {"ade_m", std::isfinite(e.ade) ? json(e.ade) : json(nullptr)},
+                 {"fde_m", std::isfinite(e.fde) ? json(e.fde) : json(nullptr)}, {"samples", e.samples}});
+  return {{"method", r.method}, {"windows", r.windows}, {"horizons", h}};
+}
+
+}  // namespace crowdmpm

@@ -1,0 +1,104 @@
+// Prediction: windows, masks and errors on synthetic recordings with known answers, and the
+// predict pipeline on a real Hermes corridor run (skipped, saying so, without ../shared/data).
+#include <catch2/catch.hpp>
+#include <cmath>
+#include <cstdio>
+#include <sstream>
+
+#include "engine/predict.hpp"
+#include "support.hpp"
+
+using namespace crowdmpm;
+
+namespace {
+// People walking in +x at 1 m/s from x = 1, 10 fps, 12 s; person 3 leaves the view after 5 s.
+TrajectorySet straight_walkers() {
+  std::ostringstream s;
+  s << "# framerate: 10\n";
+  for (int id = 1; id <= 3; ++id)
+    for (int f = 0; f <= 120; ++f) {
+      if (id == 3 && f > 50) break;
+      s << id << " " << f << " " << 1 + 0.1 * f << " " << 2.0 * id << "\n";
+    }
+  return TrajectorySet::parse(s.str(), "synthetic");
+}
+}  // namespace
+
+TEST_CASE("constant velocity is exact on straight walkers, and masks people who leave the view", "[predict]") {
+  TrajectorySet t = straight_walkers();
+  PredictOptions o;
+  o.observe = 1;
+  o.horizon = 4;
+  o.stride = 2;
+  PredictionReport r = evaluate_predictor("cv", t, o, constant_velocity_predictor());
+  REQUIRE(r.horizons.size() == 4);
+  CHECK(r.windows == 4);  // starts at 1, 3, 5, 7 s; 9 s + 4 s would pass the end (12 s)
+  for (const auto& h : r.horizons) {
+    CHECK(h.ade < 1e-9);
+    CHECK(h.fde < 1e-9);
+  }
+  // Person 3 is recorded until 5 s and masked after: at 4 s ahead only the window starting at
+  // 1 s still has them (3 + 2 + 2 + 2); at 1 s ahead the windows at 1 s and 3 s do.
+  CHECK(r.horizons[3].samples == 3 + 2 + 2 + 2);
+  CHECK(r.horizons[0].samples == 3 + 3 + 2 + 2);
+}
+
+TEST_CASE("a predictor that is off by a fixed offset reports that offset", "[predict]") {
+  TrajectorySet t = straight_walkers();
+  PredictOptions o;
+  o.observe = 1;
+  o.horizon = 2;
+  Predictor shifted = [](const ObservedState& s, const std::vector<double>& times) {
+    auto out = constant_velocity_predictor()(s, times);
+    for (auto& row : out)
+      for (auto& x : row) x += Vec2(0.3, 0.4);
+    return out;
+  };
+  PredictionReport r = evaluate_predictor("shifted", t, o, shifted);
+  CHECK(r.horizons[1].ade == Approx(0.5));
+  CHECK(r.horizons[1].fde == Approx(0.5));
+}
+
+TEST_CASE("the crowd model predicts free walkers heading for an exit", "[predict]") {
+  const char* text = R"({"format": "crowdmpm-scenario", "version": 1,
+    "domain": {"min": [0, 0], "max": [20, 8]}, "time": {"duration": 10},
+    "geometry": {"exits": [{"id": "east", "rect": [19, 0, 20, 8]}]},
+    "groups": [{"spawn": {"rect": [1, 1, 2, 2]}, "count": 0, "desired_speed": 1.0,
+                "behaviour": {"type": "goal", "target": "east"}}]})";
+  ScenarioDef s = ScenarioDef::parse_text(text);
+  TrajectorySet t = straight_walkers();  // 4 m apart: no interactions; 1 m/s = their desired speed
+  PredictOptions o;
+  o.observe = 1;
+  o.horizon = 3;
+  PredictionReport r = evaluate_predictor("model", t, o, simulation_predictor(s, Model::default_model(), 1));
+  for (const auto& h : r.horizons) CHECK(h.fde < 0.05);
+}
+
+TEST_CASE("predict on a real corridor run: finite errors, constant velocity sane", "[predict][data]") {
+  const std::string data = test::shared_data_dir();
+  if (data.empty()) {
+    WARN("skipped: ../shared/data is absent, no real recording to predict");
+    return;
+  }
+  TrajectorySet t = TrajectorySet::read(data + "/real/fzj_hermes_2009_corridor_uo/uo-180-180-180.txt");
+  ScenarioDef s = ScenarioDef::load(test::scenario_path("corridor"));
+  PredictOptions o;
+  o.observe = 10;
+  o.horizon = 4;
+  o.stride = 10;
+  o.max_windows = 4;
+  PredictionReport cv = evaluate_predictor("cv", t, o, constant_velocity_predictor());
+  PredictionReport model = evaluate_predictor("model", t, o, simulation_predictor(s, test::model_of(s), 2));
+  for (const auto* r : {&cv, &model}) {
+    REQUIRE(r->windows == 4);
+    std::printf("predict corridor %-6s", r->method.c_str());
+    for (const auto& h : r->horizons) {
+      CHECK(std::isfinite(h.ade));
+      CHECK(h.samples > 20);
+      std::printf("  ADE@%gs %.3f FDE %.3f", h.horizon, h.ade, h.fde);
+    }
+    std::printf("\n");
+  }
+  CHECK(cv.horizons[0].ade < 0.3);   // people walk ~1 m/s: 1 s of constant velocity is close
+  CHECK(cv.horizons[3].fde > cv.horizons[0].fde);
+}
