@@ -56,14 +56,16 @@ static void counting_sort(const std::vector<int>& key, size_t n, std::vector<int
   for (size_t p = 0; p < n; ++p) order[cursor[key[p]]++] = static_cast<int>(p);
 }
 
-void NeighbourGrid::build(const World& w) {
+void NeighbourGrid::build(const World& w, ThreadPool& pool) {
   const size_t n = w.size();
   cell.resize(n);
-  for (size_t p = 0; p < n; ++p) {
-    int i = std::clamp(static_cast<int>(std::floor((w.x[p].x() - origin.x()) / h)), 0, nx - 1);
-    int j = std::clamp(static_cast<int>(std::floor((w.x[p].y() - origin.y()) / h)), 0, ny - 1);
-    cell[p] = j * nx + i;
-  }
+  pool.parallel_for(n, [&](size_t b, size_t e) {
+    for (size_t p = b; p < e; ++p) {
+      int i = std::clamp(static_cast<int>(std::floor((w.x[p].x() - origin.x()) / h)), 0, nx - 1);
+      int j = std::clamp(static_cast<int>(std::floor((w.x[p].y() - origin.y()) / h)), 0, ny - 1);
+      cell[p] = j * nx + i;
+    }
+  });
   counting_sort(cell, n, start, order, cursor);
 }
 
@@ -272,7 +274,7 @@ void kernel_p2g(const StepInputs& in, const World& w, Grid& g, ThreadPool& pool)
             }
         }
       }
-    });
+    }, 1);
   }
 }
 

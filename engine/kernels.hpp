@@ -68,7 +68,7 @@ struct NeighbourGrid {
   int nx = 0, ny = 0;
   std::vector<int> start, order, cell, cursor;
   void init(const Geometry& geo, double reach, double min_cell = 0);
-  void build(const World& w);
+  void build(const World& w, ThreadPool& pool);
 };
 
 struct StepInputs {

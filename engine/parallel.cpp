@@ -1,5 +1,7 @@
 #include "engine/parallel.hpp"
 
+#include <chrono>
+
 #include "engine/error.hpp"
 
 namespace crowdmpm {
@@ -19,6 +21,21 @@ ThreadPool::~ThreadPool() {
   for (auto& t : workers_) t.join();
 }
 
+namespace {
+// How long a thread polls before it blocks: long enough to cover the gap between the loops of
+// one step, short enough not to burn a core that an oversubscribed machine needs.
+constexpr auto kSpin = std::chrono::microseconds(50);
+
+template <class Pred>
+bool spin_until(Pred ready) {
+  auto until = std::chrono::steady_clock::now() + kSpin;
+  for (int i = 0;; ++i) {
+    if (ready()) return true;
+    if ((i & 63) == 63 && std::chrono::steady_clock::now() > until) return false;
+  }
+}
+}  // namespace
+
 static void chunk(size_t n, int parts, int index, size_t& begin, size_t& end) {
   size_t base = n / parts, extra = n % parts;
   size_t i = static_cast<size_t>(index);
@@ -31,11 +48,12 @@ void ThreadPool::worker(int index) {
   for (;;) {
     const std::function<void(size_t, size_t)>* task;
     size_t n;
+    spin_until([&] { return generation_.load(std::memory_order_acquire) != seen; });
     {
       std::unique_lock<std::mutex> lock(mutex_);
-      start_cv_.wait(lock, [&] { return stop_ || generation_ != seen; });
+      start_cv_.wait(lock, [&] { return stop_ || generation_.load() != seen; });
       if (stop_) return;
-      seen = generation_;
+      seen = generation_.load();
       task = task_;
       n = n_;
     }
@@ -50,13 +68,13 @@ void ThreadPool::worker(int index) {
     {
       std::lock_guard<std::mutex> lock(mutex_);
       if (err && !error_) error_ = err;
-      if (--pending_ == 0) done_cv_.notify_one();
+      if (pending_.fetch_sub(1, std::memory_order_acq_rel) == 1) done_cv_.notify_one();
     }
   }
 }
 
-void ThreadPool::parallel_for(size_t n, const std::function<void(size_t, size_t)>& fn) {
-  if (workers_.empty() || n < 64) {
+void ThreadPool::parallel_for(size_t n, const std::function<void(size_t, size_t)>& fn, size_t min_parallel) {
+  if (workers_.empty() || n < std::max<size_t>(min_parallel, 2)) {
     if (n) fn(0, n);
     return;
   }
@@ -64,9 +82,9 @@ void ThreadPool::parallel_for(size_t n, const std::function<void(size_t, size_t)
     std::lock_guard<std::mutex> lock(mutex_);
     task_ = &fn;
     n_ = n;
-    pending_ = static_cast<int>(workers_.size());
+    pending_.store(static_cast<int>(workers_.size()));
     error_ = nullptr;
-    ++generation_;
+    generation_.fetch_add(1, std::memory_order_release);
   }
   start_cv_.notify_all();
   size_t b, e;
@@ -77,8 +95,9 @@ void ThreadPool::parallel_for(size_t n, const std::function<void(size_t, size_t)
   } catch (...) {
     err = std::current_exception();
   }
+  spin_until([&] { return pending_.load(std::memory_order_acquire) == 0; });
   std::unique_lock<std::mutex> lock(mutex_);
-  done_cv_.wait(lock, [&] { return pending_ == 0; });
+  done_cv_.wait(lock, [&] { return pending_.load() == 0; });
   if (!err) err = error_;
   task_ = nullptr;
   if (err) std::rethrow_exception(err);

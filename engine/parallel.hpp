@@ -1,6 +1,7 @@
 #pragma once
 // A small persistent thread pool. Kernels use it only as parallel_for over disjoint index
 // ranges whose outputs do not overlap, so results are bitwise identical for any thread count.
+#include <atomic>
 #include <condition_variable>
 #include <functional>
 #include <mutex>
@@ -18,8 +19,10 @@ class ThreadPool {
 
   int threads() const { return static_cast<int>(workers_.size()) + 1; }
   // Calls fn(begin, end) on contiguous chunks of [0, n); returns when all are done. An exception
-  // thrown by fn is rethrown here (the first one).
-  void parallel_for(size_t n, const std::function<void(size_t, size_t)>& fn);
+  // thrown by fn is rethrown here (the first one). Loops shorter than min_parallel run on the
+  // calling thread (waking workers costs more than a few cheap items); pass 1 when each item
+  // is large (a block of grid rows).
+  void parallel_for(size_t n, const std::function<void(size_t, size_t)>& fn, size_t min_parallel = 64);
 
  private:
   void worker(int index);
@@ -28,8 +31,10 @@ class ThreadPool {
   std::condition_variable start_cv_, done_cv_;
   const std::function<void(size_t, size_t)>* task_ = nullptr;
   size_t n_ = 0;
-  unsigned long generation_ = 0;
-  int pending_ = 0;
+  // Workers spin briefly on generation_ before sleeping, and the caller spins on pending_: a
+  // step launches about a dozen loops, and waking a sleeping thread costs tens of microseconds.
+  std::atomic<unsigned long> generation_{0};
+  std::atomic<int> pending_{0};
   bool stop_ = false;
   std::exception_ptr error_;
 };

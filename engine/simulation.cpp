@@ -1,6 +1,7 @@
 #include "engine/simulation.hpp"
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <unordered_map>
@@ -319,7 +320,7 @@ void Simulation::init_neighbours(double reach) {
 void Simulation::prepare_derived() {
   StepInputs in{model_, scenario_.geo, navs_, behaviours_, forces_, scenario_.dt};
   kernel_drive(in, world_, pool_);
-  neighbours_.build(world_);
+  neighbours_.build(world_, pool_);
   kernel_traction(in, neighbours_, world_, pool_);
 }
 
@@ -339,7 +340,7 @@ void Simulation::step() {
   };
   kernel_drive(in, world_, pool_);
   mark();
-  neighbours_.build(world_);
+  neighbours_.build(world_, pool_);
   mark();
   kernel_traction(in, neighbours_, world_, pool_);
   mark();
@@ -392,20 +393,33 @@ bool Simulation::finished() const {
 }
 
 void Simulation::check_finite() {
-  for (size_t p = 0; p < world_.size(); ++p)
-    if (!world_.x[p].allFinite() || !world_.v[p].allFinite())
-      throw Error("simulation became unstable at t = " + format_number(time()) + " s: agent " +
-                  std::to_string(world_.id[p]) + " has a non-finite position or velocity (reduce time.dt or the material stiffness E)");
+  // In parallel: find the first agent (lowest index) with a non-finite state, if any.
+  std::vector<size_t> first(static_cast<size_t>(pool_.threads()) + 1, world_.size());
+  std::atomic<int> chunk{0};
+  pool_.parallel_for(world_.size(), [&](size_t b, size_t e) {
+    size_t bad = world_.size();
+    for (size_t p = b; p < e && bad == world_.size(); ++p)
+      if (!world_.x[p].allFinite() || !world_.v[p].allFinite()) bad = p;
+    first[static_cast<size_t>(chunk++)] = bad;
+  });
+  size_t p = *std::min_element(first.begin(), first.end());
+  if (p < world_.size())
+    throw Error("simulation became unstable at t = " + format_number(time()) + " s: agent " +
+                std::to_string(world_.id[p]) + " has a non-finite position or velocity (reduce time.dt or the material stiffness E)");
 }
 
 void Simulation::retire_at_exits() {
   if (scenario_.geo.exits.empty()) return;
+  // Which exit each agent stands in (in parallel), then removal from the back (serial, so the
+  // order of swaps, and thus of the arrays, is the same for any thread count).
+  exit_of_.resize(world_.size());
+  pool_.parallel_for(world_.size(), [&](size_t b, size_t e) {
+    for (size_t p = b; p < e; ++p) exit_of_[p] = scenario_.geo.exit_at(world_.x[p]);
+  });
   for (size_t p = world_.size(); p-- > 0;) {
-    int e = scenario_.geo.exit_at(world_.x[p]);
-    if (e >= 0) {
-      exit_events_.push_back({world_.id[p], e, time()});
-      world_.remove_at(p);
-    }
+    if (exit_of_[p] < 0) continue;
+    exit_events_.push_back({world_.id[p], exit_of_[p], time()});
+    world_.remove_at(p);
   }
 }
 

@@ -117,7 +117,7 @@ double lattice_pressure(const Model& m, double d) {
   ThreadPool pool(1);
   NeighbourGrid nb;
   nb.init(geo, 1.0);  // reach >= 2 r + c
-  nb.build(w);
+  nb.build(w, pool);
   kernel_traction(in, nb, w, pool);
   return w.pressure[w.size() / 2];
 }
