@@ -2,8 +2,12 @@
 // network, P2G, grid update, G2P, projection) on a dense lattice whose rows walk in opposite
 // directions. Prints one CSV row (see benchmarks/README.md for recorded results).
 //
-//   bench_step [--agents N] [--density D] [--threads T] [--steps S] [--warmup W] [--header]
-//              [--profile] [--cost-model]
+//   bench_step [--agents N] [--density D | --spacing S] [--threads T] [--steps S] [--warmup W]
+//              [--scenario FILE] [--header] [--profile] [--cost-model]
+// The default scene is a hexagonal lattice (rows walking east and west) at --density persons/m²
+// or with --spacing metres between neighbours (0.6 m is the peers' benchmark, 3.2 /m²).
+// --scenario runs a scenario file instead (e.g. scenarios/drill.json); agent-steps then count
+// the agents present at each step.
 // --profile prints each kernel's share of the step time; --cost-model adds flops and bytes per
 // agent-step and the fraction of this machine's measured limits (cost_model.hpp).
 #include <sys/utsname.h>
@@ -13,6 +17,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <memory>
 #include <string>
 
 #include "cost_model.hpp"
@@ -22,7 +27,8 @@ using namespace crowdmpm;
 
 int main(int argc, char** argv) {
   long agents = 10000, steps = 200, warmup = 20;
-  double density = 5;
+  double density = 5, spacing = 0;
+  std::string scenario_file;
   int threads = 1;
   bool header = false, profile = false, cost_model = false;
   for (int i = 1; i < argc; ++i) {
@@ -34,6 +40,8 @@ int main(int argc, char** argv) {
     if (a == "--agents") agents = std::atol(next());
     else if (a == "--density") density = std::atof(next());
     else if (a == "--threads") threads = std::atoi(next());
+    else if (a == "--spacing") spacing = std::atof(next());
+    else if (a == "--scenario") scenario_file = next();
     else if (a == "--steps") steps = std::atol(next());
     else if (a == "--warmup") warmup = std::atol(next());
     else if (a == "--header") header = true;
@@ -41,53 +49,73 @@ int main(int argc, char** argv) {
     else if (a == "--cost-model") profile = cost_model = true;
     else { std::fprintf(stderr, "unknown option %s\n", a.c_str()); return 2; }
   }
+  if (spacing > 0) density = 2 / (std::sqrt(3.0) * spacing * spacing);
   if (agents < 1 || !(density > 0 && density <= 7) || threads < 1 || steps < 1) {
     std::fprintf(stderr, "need --agents >= 1, --density in (0, 7], --threads >= 1, --steps >= 1\n");
     return 2;
   }
-  // Hexagonal lattice at the requested density, square block, 10 m of free space on each side.
-  const double a = std::sqrt(2 / (std::sqrt(3.0) * density)), row = a * std::sqrt(3.0) / 2;
-  const long per_row = static_cast<long>(std::ceil(std::sqrt(static_cast<double>(agents) * row / a)));
-  const double width = static_cast<double>(per_row) * a;
-  const double height = std::ceil(static_cast<double>(agents) / static_cast<double>(per_row)) * row;
-  char text[2048];
-  std::snprintf(text, sizeof text, R"({"format": "crowdmpm-scenario", "version": 1, "name": "bench",
-    "domain": {"min": [-10, -10], "max": [%.3f, %.3f], "cell_size": 0.5},
-    "time": {"dt": 0.01, "duration": 1e5, "output_rate": 10},
-    "geometry": {"exits": [{"id": "east", "rect": [%.3f, -10, %.3f, %.3f]}, {"id": "west", "rect": [-10, -10, -9.5, %.3f]}]},
-    "groups": [{"id": "east", "spawn": {"rect": [0, 0, 1, 1]}, "count": 0, "behaviour": {"type": "goal", "target": "east"}},
-               {"id": "west", "spawn": {"rect": [0, 0, 1, 1]}, "count": 0, "behaviour": {"type": "goal", "target": "west"}}]})",
-                width + 10, height + 10, width + 9.5, width + 10, height + 10, height + 10);
-  ScenarioDef s = ScenarioDef::parse_text(text);
-  Simulation sim(s, Model::default_model(), threads);
-  const int east = 1, west = 2;  // behaviours of the two groups (0 is "none")
-  for (long k = 0; k < agents; ++k) {
-    long r = k / per_row, c = k % per_row;
-    AgentDef d;
-    d.position = Vec2((static_cast<double>(c) + 0.5 * static_cast<double>(r & 1)) * a + 0.05, static_cast<double>(r) * row + 0.05);
-    d.behaviour = (r & 1) ? west : east;
-    d.group = (r & 1) ? 1 : 0;
-    d.velocity = Vec2((r & 1) ? -1.0 : 1.0, 0);
-    sim.add_agent(d);
+  std::unique_ptr<ScenarioDef> scenario;
+  std::unique_ptr<Simulation> owned;
+  if (!scenario_file.empty()) {
+    try {
+      scenario = std::make_unique<ScenarioDef>(ScenarioDef::load(scenario_file));
+      owned = std::make_unique<Simulation>(*scenario, scenario->model ? *scenario->model : Model::default_model(), threads);
+    } catch (const Error& e) {
+      std::fprintf(stderr, "bench_step: %s\n", e.what());
+      return 1;
+    }
+    density = 0;  // not a lattice
+  } else {
+    // Hexagonal lattice at the requested density, square block, 10 m of free space on each side.
+    const double a = std::sqrt(2 / (std::sqrt(3.0) * density)), row = a * std::sqrt(3.0) / 2;
+    const long per_row = static_cast<long>(std::ceil(std::sqrt(static_cast<double>(agents) * row / a)));
+    const double width = static_cast<double>(per_row) * a;
+    const double height = std::ceil(static_cast<double>(agents) / static_cast<double>(per_row)) * row;
+    char text[2048];
+    std::snprintf(text, sizeof text, R"({"format": "crowdmpm-scenario", "version": 1, "name": "bench",
+      "domain": {"min": [-10, -10], "max": [%.3f, %.3f], "cell_size": 0.5},
+      "time": {"dt": 0.01, "duration": 1e5, "output_rate": 10},
+      "geometry": {"exits": [{"id": "east", "rect": [%.3f, -10, %.3f, %.3f]}, {"id": "west", "rect": [-10, -10, -9.5, %.3f]}]},
+      "groups": [{"id": "east", "spawn": {"rect": [0, 0, 1, 1]}, "count": 0, "behaviour": {"type": "goal", "target": "east"}},
+                 {"id": "west", "spawn": {"rect": [0, 0, 1, 1]}, "count": 0, "behaviour": {"type": "goal", "target": "west"}}]})",
+                  width + 10, height + 10, width + 9.5, width + 10, height + 10, height + 10);
+    scenario = std::make_unique<ScenarioDef>(ScenarioDef::parse_text(text));
+    owned = std::make_unique<Simulation>(*scenario, Model::default_model(), threads);
+    const int east = 1, west = 2;  // behaviours of the two groups (0 is "none")
+    for (long k = 0; k < agents; ++k) {
+      long r = k / per_row, c = k % per_row;
+      AgentDef d;
+      d.position = Vec2((static_cast<double>(c) + 0.5 * static_cast<double>(r & 1)) * a + 0.05, static_cast<double>(r) * row + 0.05);
+      d.behaviour = (r & 1) ? west : east;
+      d.group = (r & 1) ? 1 : 0;
+      d.velocity = Vec2((r & 1) ? -1.0 : 1.0, 0);
+      owned->add_agent(d);
+    }
   }
+  Simulation& sim = *owned;
   sim.run_steps(warmup);
   sim.set_profiling(profile);
+  double agent_steps = 0;
   auto t0 = std::chrono::steady_clock::now();
-  sim.run_steps(steps);
+  for (long k = 0; k < steps; ++k) {
+    agent_steps += static_cast<double>(sim.world().size());
+    sim.step();
+  }
   double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  double rate = static_cast<double>(agents) * static_cast<double>(steps) / secs;
+  double rate = agent_steps / secs;
+  agents = std::lround(agent_steps / static_cast<double>(steps));
   long pairs = 0;
   for (size_t p = 0; p < sim.world().size(); ++p) pairs += sim.world().pair_virial[p] > 0;
   struct utsname u;
   uname(&u);
-  if (header) std::printf("machine,compiler,agents,density,threads,steps,seconds,agent_steps_per_s,agents_in_contact\n");
-  std::printf("%s %s,%s,%ld,%.2f,%d,%ld,%.3f,%.0f,%ld\n", u.sysname, u.machine,
+  if (header) std::printf("machine,compiler,flags,scene,agents,density,threads,steps,seconds,agent_steps_per_s,agents_in_contact\n");
+  std::printf("%s %s,%s,%s,%s,%ld,%.2f,%d,%ld,%.3f,%.0f,%ld\n", u.sysname, u.machine,
 #if defined(__clang__)
               "clang " __clang_version__,
 #else
               "gcc " __VERSION__,
 #endif
-              agents, density, threads, steps, secs, rate, pairs);
+              CROWDMPM_BENCH_FLAGS, scenario_file.empty() ? "lattice" : scenario->name.c_str(), agents, density, threads, steps, secs, rate, pairs);
   if (profile) {
     const StepProfile& pr = sim.profile();
     double total = 0;

@@ -394,7 +394,8 @@ bool Simulation::finished() const {
 
 void Simulation::check_finite() {
   // In parallel: find the first agent (lowest index) with a non-finite state, if any.
-  std::vector<size_t> first(static_cast<size_t>(pool_.threads()) + 1, world_.size());
+  std::vector<size_t>& first = first_bad_;
+  first.assign(static_cast<size_t>(pool_.threads()) + 1, world_.size());
   std::atomic<int> chunk{0};
   pool_.parallel_for(world_.size(), [&](size_t b, size_t e) {
     size_t bad = world_.size();

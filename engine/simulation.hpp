@@ -104,7 +104,8 @@ class Simulation {
   long steps_ = 0;
   long spawned_ = 0;
   double max_radius_ = 0, max_comfort_ = 0;  // over agents added so far (for the cell lists)
-  std::vector<int> exit_of_;  // scratch of retire_at_exits
+  std::vector<int> exit_of_;        // scratch of retire_at_exits
+  std::vector<size_t> first_bad_;   // scratch of check_finite
   bool profiling_ = false;
   StepProfile profile_;
 };
