@@ -46,7 +46,7 @@ static void chunk(size_t n, int parts, int index, size_t& begin, size_t& end) {
 void ThreadPool::worker(int index) {
   unsigned long seen = 0;
   for (;;) {
-    const std::function<void(size_t, size_t)>* task;
+    const Task* task;
     size_t n;
     spin_until([&] { return generation_.load(std::memory_order_acquire) != seen; });
     {
@@ -61,7 +61,7 @@ void ThreadPool::worker(int index) {
     chunk(n, threads(), index, b, e);
     std::exception_ptr err;
     try {
-      if (b < e) (*task)(b, e);
+      if (b < e) task->call(task->fn, b, e);
     } catch (...) {
       err = std::current_exception();
     }
@@ -73,9 +73,9 @@ void ThreadPool::worker(int index) {
   }
 }
 
-void ThreadPool::parallel_for(size_t n, const std::function<void(size_t, size_t)>& fn, size_t min_parallel) {
+void ThreadPool::run(size_t n, const Task& fn, size_t min_parallel) {
   if (workers_.empty() || n < std::max<size_t>(min_parallel, 2)) {
-    if (n) fn(0, n);
+    if (n) fn.call(fn.fn, 0, n);
     return;
   }
   {
@@ -91,7 +91,7 @@ void ThreadPool::parallel_for(size_t n, const std::function<void(size_t, size_t)
   chunk(n, threads(), 0, b, e);
   std::exception_ptr err;
   try {
-    if (b < e) fn(b, e);
+    if (b < e) fn.call(fn.fn, b, e);
   } catch (...) {
     err = std::current_exception();
   }
