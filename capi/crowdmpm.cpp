@@ -97,6 +97,7 @@ long agent_index(const Simulation& sim, cmpm_AgentId a) {
 
 int behaviour_for(Simulation& sim, const char* target, int32_t group) {
   if (target) return sim.behaviour_for_target(target);
+  if (group == -1) fail(CMPM_ERROR_INVALID_ARGUMENT, "an agent needs a target or a group (to take its behaviour from)");
   const auto& groups = sim.scenario().groups;
   if (group < 0 || group >= static_cast<int32_t>(groups.size()))
     fail(CMPM_ERROR_INVALID_ARGUMENT, "agent group " + std::to_string(group) + " out of range (the scenario has " +
@@ -133,6 +134,7 @@ cmpm_AgentDef cmpm_DefaultAgentDef(void) {
   d.body_radius = -1;  // the model's
   d.comfort_distance = -1;
   d.desired_speed = 1.3;
+  d.group = -1;  // none
   d.internal_cookie = kCookie;
   return d;
 }
@@ -323,7 +325,7 @@ cmpm_Status cmpm_World_AddAgent(cmpm_WorldId world, const cmpm_AgentDef* def, cm
     a.comfort_distance = def->comfort_distance < 0 ? sim.model().params.comfort_distance : def->comfort_distance;
     a.desired_speed = def->desired_speed;
     a.behaviour = behaviour_for(sim, def->target, def->group);
-    a.group = def->target ? std::max(0, def->group) : def->group;
+    a.group = def->group;
     out_agent->value = sim.add_agent(a);
   });
 }

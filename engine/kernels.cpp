@@ -189,7 +189,13 @@ void kernel_traction(const StepInputs& in, const NeighbourGrid& nb, World& w, Th
               Vec2 r = w.x[q] - xp;
               double d = r.norm();
               double theta1 = w.radius[p] + w.radius[q];
-              if (d >= theta1 + cp || d < 1e-12) continue;
+              if (d >= theta1 + cp) continue;
+              if (d < 1e-9) {
+                // Coincident centres: separate them along x, the lower id to the left, so that
+                // two agents placed on the same spot do not stay fused.
+                r = Vec2(w.id[q] > w.id[p] ? 1e-9 : -1e-9, 0);
+                d = 1e-9;
+              }
               Vec2 n = r / d, np(-n.y(), n.x());
               Vec2 dv = w.v[q] - vp;
               inputs[0] = cp;

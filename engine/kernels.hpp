@@ -1,8 +1,8 @@
 #pragma once
 // One MPM step of the crowd material, kernel by kernel (DESIGN.md section 2). Each kernel is a
 // function of the arrays it names; outputs are per particle or per grid node and never shared
-// between threads, so results do not depend on the thread count. P2G is written as a gather
-// over particles binned by their stencil base, not as a scatter with atomics.
+// between threads, so results do not depend on the thread count. P2G scatters particles sorted
+// by stencil base in row blocks that never share a node (even blocks, then odd), not with atomics.
 #include <vector>
 
 #include "engine/stencil.hpp"

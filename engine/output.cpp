@@ -88,10 +88,19 @@ RunSummary run_scenario(const ScenarioDef& s, const Model& model, const RunOptio
     if (s.outputs.video) video = std::make_unique<ParticleVideo>(file("particles.mp4"), s.geo, view, s.output_rate, pmax);
   }
   std::vector<float> buf;
+  long last_frame = -1;
   auto emit = [&]() {
     FieldFrame f = compute_fields(sim.world(), sim.grid());
     metrics.record(sim, f);
+    // A run that ends between two frames (all evacuated, or a duration that is not a whole
+    // number of frames) gets its final state in the metrics only: a frame number must stand
+    // for one time, and files must not repeat one.
     long frame = std::lround(sim.time() * s.output_rate);
+    if (frame <= last_frame || std::abs(static_cast<double>(frame) / s.output_rate - sim.time()) > 0.25 * s.dt) {
+      if (opt.progress) opt.progress(sim.time(), s.duration, sim.world().size());
+      return;
+    }
+    last_frame = frame;
     if (traj) traj->write_frame(sim.world(), frame);
     if (npy_density) {
       buf.assign(f.density.begin(), f.density.end());

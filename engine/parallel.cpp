@@ -9,7 +9,18 @@ namespace crowdmpm {
 ThreadPool::ThreadPool(int threads) {
   if (threads < 1 || threads > 256)
     throw Error("thread count must be in [1, 256], got " + std::to_string(threads));
-  for (int i = 1; i < threads; ++i) workers_.emplace_back([this, i] { worker(i); });
+  try {
+    for (int i = 1; i < threads; ++i) workers_.emplace_back([this, i] { worker(i); });
+  } catch (const std::exception& e) {
+    // Join the workers that did start, or their destruction would terminate the process.
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      stop_ = true;
+    }
+    start_cv_.notify_all();
+    for (auto& t : workers_) t.join();
+    throw Error("cannot start " + std::to_string(threads) + " threads: " + e.what());
+  }
 }
 
 ThreadPool::~ThreadPool() {

@@ -110,7 +110,9 @@ View View::fit(const Geometry& geo, double pixels_per_metre) {
     double ext = std::max(geo.hi.x() - geo.lo.x(), geo.hi.y() - geo.lo.y());
     v.ppm = std::clamp(800.0 / ext, 1.0, 60.0);
   }
-  // Video codecs want even sizes; keep the whole canvas even.
+  // At most 4000 px on a side (a 7.5 GB picture helps nobody): lower the scale if asked for more.
+  const double longest = std::max(geo.hi.x() - geo.lo.x(), geo.hi.y() - geo.lo.y());
+  v.ppm = std::max(1e-3, std::min(v.ppm, 4000.0 / longest));
   return v;
 }
 

@@ -93,6 +93,9 @@ ScenarioDef ScenarioDef::parse(const json& j, const std::string& source, const s
     dom.fail_at("max", "must be greater than domain.min in both x and y");
   s.cell_size = dom.in_range("cell_size", 0.05, 10, 0.5);
   Vec2 ext = s.geo.hi - s.geo.lo;
+  if (ext.x() / s.cell_size > 1e6 || ext.y() / s.cell_size > 1e6)
+    dom.fail_at("cell_size", "gives more than 1e6 grid cells along one side of the domain (" + format_number(ext.x()) +
+                                 " m x " + format_number(ext.y()) + " m); use a larger cell");
   if (ext.x() / s.cell_size * ext.y() / s.cell_size > 2e7)
     dom.fail_at("cell_size", "gives more than 2e7 grid cells for this domain (" + format_number(ext.x()) + " m x " +
                                  format_number(ext.y()) + " m); use a larger cell");
@@ -104,7 +107,7 @@ ScenarioDef ScenarioDef::parse(const json& j, const std::string& source, const s
     nav->allow_only({"cell_size"});
     s.nav_cell = nav->in_range("cell_size", 0.02, 5, s.nav_cell);
   }
-  if (ext.x() / s.nav_cell * ext.y() / s.nav_cell > 2e7)
+  if (ext.x() / s.nav_cell * ext.y() / s.nav_cell > 2e7 || ext.x() / s.nav_cell > 1e6 || ext.y() / s.nav_cell > 1e6)
     r.fail_at("navigation.cell_size", "gives more than 2e7 navigation cells for this domain (" + format_number(ext.x()) +
                                           " m x " + format_number(ext.y()) + " m); set a larger navigation.cell_size");
 

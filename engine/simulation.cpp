@@ -27,6 +27,8 @@ static void check_time_step(const ScenarioDef& s, const Model& m, double dt) {
 
 void Simulation::set_time_step(double dt) {
   check_time_step(scenario_, model_, dt);
+  time_at_dt_change_ = time();
+  steps_at_dt_change_ = steps_;
   scenario_.dt = dt;
 }
 
@@ -46,6 +48,11 @@ Simulation::Simulation(const ScenarioDef& scenario, const Model& model, int thre
     max_r = std::max(max_r, g.body_radius.value_or(P.body_radius));
     max_c = std::max(max_c, g.comfort_distance.value_or(P.comfort_distance));
   }
+  double min_c = P.comfort_distance;
+  for (const auto& g : scenario_.groups) min_c = std::min(min_c, g.comfort_distance.value_or(P.comfort_distance));
+  if (model_.has_traction() && P.contact_epsilon >= min_c)
+    throw Error(scenario_.source + ": model contact_epsilon " + format_number(P.contact_epsilon) +
+                " m must be smaller than every comfort distance (smallest: " + format_number(min_c) + " m)");
   max_radius_ = max_r;
   max_comfort_ = max_c;
   init_neighbours(2 * max_r + max_c);
@@ -90,9 +97,10 @@ int Simulation::nav_for(const std::string& target) {
     if (!t) throw Error("no exit or goal with id \"" + target + "\"");
     shapes.push_back(&t->shape);
   }
-  navs_.emplace_back(scenario_.geo, shapes, scenario_.nav_cell, model_.params.wall_clearance);
-  if (!navs_.back().has_target())
+  NavField field(scenario_.geo, shapes, scenario_.nav_cell, model_.params.wall_clearance);
+  if (!field.has_target())
     throw Error("target \"" + target + "\" has no walkable cell in or next to it (it lies inside solids or outside the domain)");
+  navs_.push_back(std::move(field));
   nav_targets_.push_back(target);
   return static_cast<int>(navs_.size() - 1);
 }
@@ -174,7 +182,11 @@ EntityId Simulation::add_agent(const AgentDef& def) {
   if (!(def.body_radius >= 0.05 && def.body_radius <= 0.5)) throw Error("agent body_radius must be in [0.05, 0.5] m, got " + format_number(def.body_radius));
   if (!(def.comfort_distance >= 0.01 && def.comfort_distance <= 2)) throw Error("agent comfort_distance must be in [0.01, 2] m, got " + format_number(def.comfort_distance));
   if (!(def.desired_speed >= 0 && def.desired_speed <= 12)) throw Error("agent desired_speed must be in [0, 12] m/s, got " + format_number(def.desired_speed));
-  if (def.group < 0) throw Error("agent group must be >= 0");
+  if (def.group < -1 || def.group >= static_cast<int>(scenario_.groups.size()))
+    throw Error("agent group " + std::to_string(def.group) + " out of range (-1 for none, or a group index)");
+  if (model_.has_traction() && def.comfort_distance <= model_.params.contact_epsilon)
+    throw Error("agent comfort_distance must be larger than the model's contact_epsilon (" +
+                format_number(model_.params.contact_epsilon) + " m)");
   // Keep the cell lists wide enough for the new agent's reach (r + r_max + c).
   double reach = 2 * std::max(def.body_radius, max_radius_) + std::max(def.comfort_distance, max_comfort_);
   max_radius_ = std::max(max_radius_, def.body_radius);
@@ -328,6 +340,8 @@ const char* const StepProfile::kNames[StepProfile::kParts] = {"drive", "neighbou
                                                                "g2p", "project", "exits", "sources"};
 
 void Simulation::step() {
+  if (failed_)
+    throw Error("the simulation became unstable at t = " + format_number(time()) + " s and cannot be stepped further");
   StepInputs in{model_, scenario_.geo, navs_, behaviours_, forces_, scenario_.dt};
   using clock = std::chrono::steady_clock;
   auto t = profiling_ ? clock::now() : clock::time_point();
@@ -361,8 +375,9 @@ void Simulation::step() {
   if (profiling_) ++profile_.steps;
 }
 
-PairStats Simulation::pair_stats() const {
+PairStats Simulation::pair_stats() {
   PairStats st;
+  neighbours_.build(world_, pool_);  // the lists of the last step may name retired agents
   const NeighbourGrid& nb = neighbours_;
   const World& w = world_;
   for (size_t p = 0; p < w.size(); ++p) {
@@ -404,9 +419,11 @@ void Simulation::check_finite() {
     first[static_cast<size_t>(chunk++)] = bad;
   });
   size_t p = *std::min_element(first.begin(), first.end());
-  if (p < world_.size())
+  if (p < world_.size()) {
+    failed_ = true;
     throw Error("simulation became unstable at t = " + format_number(time()) + " s: agent " +
                 std::to_string(world_.id[p]) + " has a non-finite position or velocity (reduce time.dt or the material stiffness E)");
+  }
 }
 
 void Simulation::retire_at_exits() {

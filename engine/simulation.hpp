@@ -51,7 +51,9 @@ class Simulation {
   void run_steps(long n);
   bool finished() const;
 
-  double time() const { return static_cast<double>(steps_) * scenario_.dt; }
+  // Simulated time: steps since the last change of dt times dt, plus the time reached then
+  // (so that changing dt never rewrites the past, and without a change time = steps * dt exactly).
+  double time() const { return time_at_dt_change_ + static_cast<double>(steps_ - steps_at_dt_change_) * scenario_.dt; }
   long steps() const { return steps_; }
   const ScenarioDef& scenario() const { return scenario_; }
   const Model& model() const { return model_; }
@@ -65,7 +67,7 @@ class Simulation {
   int threads() const { return pool_.threads(); }
   void set_profiling(bool on) { profiling_ = on; }
   const StepProfile& profile() const { return profile_; }
-  PairStats pair_stats() const;
+  PairStats pair_stats();
 
   // Add one agent (C API, tests); returns its id. Behaviour: index into behaviours().
   EntityId add_agent(const AgentDef& def);
@@ -102,6 +104,9 @@ class Simulation {
   std::vector<long> source_spawned_;
   Rng rng_;
   long steps_ = 0;
+  long steps_at_dt_change_ = 0;
+  double time_at_dt_change_ = 0;
+  bool failed_ = false;  // the state became non-finite: no further steps
   long spawned_ = 0;
   double max_radius_ = 0, max_comfort_ = 0;  // over agents added so far (for the cell lists)
   std::vector<int> exit_of_;        // scratch of retire_at_exits

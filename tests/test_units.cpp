@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <fstream>
 
+#include "engine/trajectory.hpp"
 #include "support.hpp"
 
 using namespace crowdmpm;
@@ -161,4 +162,50 @@ TEST_CASE("orbit around a structure follows its contour counter-clockwise", "[un
     "domain": {"min": [0, 0], "max": [5, 5]}, "time": {"duration": 1},
     "groups": [{"spawn": {"rect": [1, 1, 2, 2]}, "count": 1, "behaviour": {"type": "orbit", "around": "x", "center": [1, 1]}}]})";
   CHECK_THROWS_WITH(ScenarioDef::parse_text(both), Catch::Contains("groups[0].behaviour: orbit needs exactly one of"));
+}
+
+TEST_CASE("agents placed on the same spot separate", "[units]") {
+  const char* text = R"({"format": "crowdmpm-scenario", "version": 1,
+    "domain": {"min": [0, 0], "max": [10, 6]}, "time": {"duration": 5},
+    "groups": [{"spawn": {"rect": [1, 1, 2, 2]}, "count": 0, "behaviour": {"type": "none"}}]})";
+  ScenarioDef s = ScenarioDef::parse_text(text);
+  Simulation sim(s, Model::default_model(), 1);
+  AgentDef a;
+  a.position = Vec2(5, 3);
+  a.behaviour = 1;
+  EntityId first = sim.add_agent(a), second = sim.add_agent(a);
+  sim.run_steps(200);
+  const World& w = sim.world();
+  double gap = (w.x[static_cast<size_t>(w.index_of(first))] - w.x[static_cast<size_t>(w.index_of(second))]).norm();
+  CHECK(gap > 0.3);
+}
+
+TEST_CASE("changing dt keeps the elapsed time", "[units]") {
+  ScenarioDef s = ScenarioDef::load(test::scenario_path("drill"));
+  Simulation sim(s, test::model_of(s), 1);
+  sim.run_steps(100);
+  CHECK(sim.time() == Approx(1.0));
+  sim.set_time_step(0.005);
+  CHECK(sim.time() == Approx(1.0));
+  sim.run_steps(100);
+  CHECK(sim.time() == Approx(1.5));
+  CHECK_THROWS_WITH(sim.set_time_step(0.2), Catch::Contains("time.dt"));
+}
+
+TEST_CASE("contact_epsilon must stay below every comfort distance", "[units]") {
+  ScenarioDef s = ScenarioDef::load(test::scenario_path("drill"));
+  Model m = Model::default_model();
+  m.set("contact_epsilon", 0.1);
+  m.set("comfort_distance", 0.05);
+  CHECK_THROWS_WITH(Simulation(s, m, 1), Catch::Contains("contact_epsilon 0.1 m must be smaller than every comfort distance"));
+}
+
+TEST_CASE("a run ending between frames does not repeat a frame number", "[units]") {
+  ScenarioDef s = ScenarioDef::load(test::scenario_path("drill"));
+  s.duration = 1.03;
+  s.outputs.fields = s.outputs.pictures = s.outputs.video = false;
+  auto dir = (std::filesystem::temp_directory_path() / "crowdmpm_partial_frame").string();
+  run_scenario(s, test::model_of(s), RunOptions{dir, 1, nullptr});
+  TrajectorySet t = TrajectorySet::read(dir + "/trajectories.txt");  // rejects repeated (id, frame)
+  CHECK(t.frame_max() == 10);
 }

@@ -108,6 +108,8 @@ static void test_agents_and_parameters(void) {
   a.target = NULL;
   a.group = 5;
   CHECK_FAILS(cmpm_World_AddAgent(w, &a, &id), CMPM_ERROR_INVALID_ARGUMENT, "group 5 out of range");
+  a.group = -1;
+  CHECK_FAILS(cmpm_World_AddAgent(w, &a, &id), CMPM_ERROR_INVALID_ARGUMENT, "needs a target or a group");
   a.group = 0;
   a.body_radius = 3;
   CHECK_FAILS(cmpm_World_AddAgent(w, &a, &id), CMPM_ERROR_INVALID_ARGUMENT, "body_radius");
@@ -187,8 +189,12 @@ static void test_misuse(void) {
     CHECK_FAILS(cmpm_World_SetTimeStep(w2, 0), CMPM_ERROR_INVALID_ARGUMENT, "time.dt");
     CHECK_FAILS(cmpm_World_SetTimeStep(w2, NAN), CMPM_ERROR_INVALID_ARGUMENT, "time.dt");
     CHECK_FAILS(cmpm_World_SetTimeStep(w2, 0.09), CMPM_ERROR_INVALID_ARGUMENT, "too large");
+    CHECK(cmpm_World_Step(w2, 100) == CMPM_OK);
     CHECK(cmpm_World_SetTimeStep(w2, 0.005) == CMPM_OK);
     CHECK(cmpm_World_GetTimeStep(w2, &t) == CMPM_OK && t == 0.005);
+    CHECK(cmpm_World_GetTime(w2, &t) == CMPM_OK && fabs(t - 1.0) < 1e-12); /* the past is kept */
+    CHECK(cmpm_World_Step(w2, 100) == CMPM_OK);
+    CHECK(cmpm_World_GetTime(w2, &t) == CMPM_OK && fabs(t - 1.5) < 1e-12);
     CHECK_FAILS(cmpm_World_GetTime(w2, NULL), CMPM_ERROR_INVALID_ARGUMENT, "out_seconds is NULL");
     CHECK_FAILS(cmpm_World_GetPositions(w2, NULL, 1000, &n), CMPM_ERROR_INVALID_ARGUMENT, "out is NULL");
     CHECK_FAILS(cmpm_World_GetPositions(w2, buf, -5, &n), CMPM_ERROR_INVALID_ARGUMENT, "capacity");

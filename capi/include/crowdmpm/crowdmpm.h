@@ -81,7 +81,9 @@ typedef struct cmpm_WorldDef {
 } cmpm_WorldDef;
 
 /* One agent. target: id of an exit or goal to walk to, or "nearest_exit"; NULL gives the
- * behaviour of group `group` (index into the scenario's groups then sources). */
+ * behaviour of group `group` (index into the scenario's groups then sources). group also
+ * selects which group-restricted scenario forces act on the agent; -1 (the default) is no
+ * group: only forces that apply to everyone. */
 typedef struct cmpm_AgentDef {
   double x, y;               /* position, m */
   double vx, vy;             /* velocity, m/s */
@@ -111,7 +113,8 @@ CMPM_API int32_t cmpm_World_IsValid(cmpm_WorldId world);  /* 1 if it refers to a
 
 /* Advance by `steps` steps of the scenario's dt (0 <= steps <= 10,000,000). */
 CMPM_API cmpm_Status cmpm_World_Step(cmpm_WorldId world, int32_t steps);
-/* Change the step length, s, in (0, 0.1] and at most cell_size / (4 max_speed). */
+/* Change the step length, s, in (0, 0.1] and at most cell_size / (4 max_speed). The simulated
+ * time keeps what has elapsed; later steps advance it by the new dt. */
 CMPM_API cmpm_Status cmpm_World_SetTimeStep(cmpm_WorldId world, double dt);
 CMPM_API cmpm_Status cmpm_World_GetTimeStep(cmpm_WorldId world, double* out_dt);
 CMPM_API cmpm_Status cmpm_World_GetTime(cmpm_WorldId world, double* out_seconds);
@@ -144,7 +147,9 @@ CMPM_API cmpm_Status cmpm_World_SetAgentTarget(cmpm_WorldId world, cmpm_AgentId 
 CMPM_API cmpm_Status cmpm_World_GetAgentState(cmpm_WorldId world, cmpm_AgentId agent, double* out_x, double* out_y,
                                               double* out_vx, double* out_vy);
 
-/* Material parameters by name (see docs/model-format.md: E, gamma, tension_scale, tau, ...). */
+/* Material parameters by name (see docs/model-format.md: E, gamma, tension_scale, tau, ...),
+ * range-checked. body_radius, comfort_distance, rest_density and mass are fixed once a world
+ * exists (they size agents and the grid): setting them is CMPM_ERROR_INVALID_ARGUMENT. */
 CMPM_API cmpm_Status cmpm_World_GetParameter(cmpm_WorldId world, const char* name, double* out_value);
 CMPM_API cmpm_Status cmpm_World_SetParameter(cmpm_WorldId world, const char* name, double value);
 /* Replace the traction network from JSON: {"layers": [...]} or {"constant": K}. */
