@@ -1,5 +1,6 @@
 #include "engine/predict.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <unordered_map>
@@ -103,6 +104,16 @@ Predictor simulation_predictor(const ScenarioDef& scenario, const Model& model, 
     Simulation sim(sc, model, threads);
     const double clearance = model.params.wall_clearance;
     std::vector<EntityId> ids;
+    // Bodies must fit the observed crowd: recorded crowds reach 9-11 persons/m², closer than
+    // the model's default bodies allow, and starting them overlapped would throw them apart.
+    // Each agent's radius is at most half its nearest observed neighbour's distance.
+    std::vector<double> nearest(s.x.size(), 1e300);
+    for (size_t i = 0; i < s.x.size(); ++i)
+      for (size_t j = i + 1; j < s.x.size(); ++j) {
+        double d = (s.x[i] - s.x[j]).norm();
+        nearest[i] = std::min(nearest[i], d);
+        nearest[j] = std::min(nearest[j], d);
+      }
     for (size_t i = 0; i < s.x.size(); ++i) {
       AgentDef a;
       Vec2 x = s.x[i];
@@ -113,7 +124,7 @@ Predictor simulation_predictor(const ScenarioDef& scenario, const Model& model, 
       }
       a.position = x;
       a.velocity = s.v[i];
-      a.body_radius = model.params.body_radius;
+      a.body_radius = std::clamp(0.5 * nearest[i], 0.05, model.params.body_radius);
       a.comfort_distance = model.params.comfort_distance;
       a.desired_speed = base.groups[0].desired_speed;
       a.behaviour = 1;  // the first group's behaviour

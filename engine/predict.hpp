@@ -54,8 +54,9 @@ PredictionReport evaluate_predictor(const std::string& method, const TrajectoryS
 // Constant velocity: x(t) = x0 + v0 t.
 Predictor constant_velocity_predictor();
 // The crowd material: the scenario's geometry and behaviours (its groups and sources emptied),
-// the observed agents placed (moved out of solids if a recorded head leans over a barrier) with
-// the behaviour of the scenario's first group.
+// the observed agents placed (moved out of solids if a recorded head leans over a barrier, body
+// radius at most half the distance to the nearest observed neighbour) with the behaviour of
+// the scenario's first group.
 Predictor simulation_predictor(const ScenarioDef& scenario, const Model& model, int threads);
 
 json report_to_json(const PredictionReport& r);
