@@ -20,6 +20,23 @@ double apply_activation(Activation a, double x) {
   return x;
 }
 
+double activation_derivative(Activation a, double x) {
+  switch (a) {
+    case Activation::Identity: return 1;
+    case Activation::Tanh: {
+      double t = apply_activation(Activation::Tanh, x);
+      return 1 - t * t;
+    }
+    case Activation::Relu: return x > 0 ? 1 : 0;
+    case Activation::Softplus: return 1 / (1 + std::exp(-x));  // the logistic function
+    case Activation::Sigmoid: {
+      double sg = 1 / (1 + std::exp(-x));
+      return sg * (1 - sg);
+    }
+  }
+  return 1;
+}
+
 const char* activation_name(Activation a) {
   switch (a) {
     case Activation::Identity: return "identity";
@@ -58,7 +75,81 @@ double TractionNet::eval(const double* inputs) const {
   return apply_activation(output, in[0]);
 }
 
+std::vector<double> TractionNet::parameters() const {
+  if (layers.empty()) return {constant};
+  std::vector<double> flat;
+  for (const auto& L : layers) {
+    flat.insert(flat.end(), L.weights.begin(), L.weights.end());
+    flat.insert(flat.end(), L.biases.begin(), L.biases.end());
+  }
+  return flat;
+}
+
+void TractionNet::set_parameters(const std::vector<double>& flat) {
+  if (flat.size() != parameter_count())
+    throw Error("traction network has " + std::to_string(parameter_count()) + " parameters, got " + std::to_string(flat.size()));
+  for (double v : flat)
+    if (!std::isfinite(v)) throw Error("traction network parameters must be finite");
+  if (layers.empty()) {
+    if (flat[0] < 0) throw Error("a constant traction gain must be >= 0, got " + format_number(flat[0]));
+    constant = flat[0];
+    return;
+  }
+  size_t k = 0;
+  for (auto& L : layers) {
+    for (auto& w : L.weights) w = flat[k++];
+    for (auto& b : L.biases) b = flat[k++];
+  }
+}
+
+double TractionNet::eval_backward(const double* inputs, double dK, double* d_inputs, double* d_params) const {
+  if (layers.empty()) {
+    d_params[0] += dK;
+    return constant;
+  }
+  // Forward, keeping every layer's input and pre-activation (widths are at most kMaxWidth).
+  const size_t nl = layers.size();
+  double act[8][kMaxWidth], pre[8][kMaxWidth];
+  if (nl > 8) throw Error("traction network: backward pass supports at most 8 layers");
+  const double* in = inputs;
+  for (size_t l = 0; l < nl; ++l) {
+    const DenseLayer& L = layers[l];
+    for (int o = 0; o < L.out; ++o) {
+      double z = L.biases[static_cast<size_t>(o)];
+      const double* w = &L.weights[static_cast<size_t>(o) * static_cast<size_t>(L.in)];
+      for (int i = 0; i < L.in; ++i) z += w[i] * in[i];
+      pre[l][o] = z;
+      act[l][o] = apply_activation(L.activation, z);
+    }
+    in = act[l];
+  }
+  const double K = apply_activation(output, act[nl - 1][0]);
+  // Backward.
+  double g[kMaxWidth], g_prev[kMaxWidth];
+  g[0] = dK * activation_derivative(output, act[nl - 1][0]);
+  size_t offset = parameter_count();
+  for (size_t l = nl; l-- > 0;) {
+    const DenseLayer& L = layers[l];
+    offset -= L.weights.size() + L.biases.size();
+    const double* lin = l == 0 ? inputs : act[l - 1];
+    for (int i = 0; i < L.in; ++i) g_prev[i] = 0;
+    for (int o = 0; o < L.out; ++o) {
+      const double gz = g[o] * activation_derivative(L.activation, pre[l][o]);
+      const size_t row = static_cast<size_t>(o) * static_cast<size_t>(L.in);
+      for (int i = 0; i < L.in; ++i) {
+        d_params[offset + row + static_cast<size_t>(i)] += gz * lin[i];
+        g_prev[i] += gz * L.weights[row + static_cast<size_t>(i)];
+      }
+      d_params[offset + L.weights.size() + static_cast<size_t>(o)] += gz;
+    }
+    for (int i = 0; i < L.in; ++i) g[i] = g_prev[i];
+  }
+  for (int i = 0; i < kInputs; ++i) d_inputs[i] += g[i];
+  return K;
+}
+
 size_t TractionNet::parameter_count() const {
+  if (layers.empty()) return 1;
   size_t n = 0;
   for (const auto& L : layers) n += L.weights.size() + L.biases.size();
   return n;

@@ -35,11 +35,22 @@ class TractionNet {
   double eval(const double* inputs) const;
   size_t parameter_count() const;
 
+  // Flat view of the learnable values: each layer's weights (row-major) then biases, layer by
+  // layer; a constant network has one value, the constant.
+  std::vector<double> parameters() const;
+  void set_parameters(const std::vector<double>& flat);
+
+  // Reverse mode: evaluates K and then, for an upstream gradient dK, adds dK * dK/dinputs to
+  // d_inputs[kInputs] and dK * dK/dparameters to d_params (flat order above). Exact for smooth
+  // activations; relu and the constant network are handled by their (sub)gradients.
+  double eval_backward(const double* inputs, double dK, double* d_inputs, double* d_params) const;
+
   static TractionNet parse(const JsonReader& r);
   json to_json() const;
 };
 
 double apply_activation(Activation a, double x);
+double activation_derivative(Activation a, double x);  // d/dx at the pre-activation x
 Activation parse_activation(const JsonReader& r, const std::string& key, const std::string& fallback);
 const char* activation_name(Activation a);
 

@@ -1,0 +1,93 @@
+// Gradients: the traction network's reverse mode against central finite differences (inputs
+// and every weight and bias), and Adam on a problem with a known minimum.
+#include <catch2/catch.hpp>
+#include <cmath>
+
+#include "engine/optim.hpp"
+#include "engine/traction.hpp"
+#include "support.hpp"
+
+using namespace crowdmpm;
+
+namespace {
+TractionNet random_net(uint64_t seed, Activation hidden) {
+  Rng rng(seed);
+  TractionNet net;
+  int prev = TractionNet::kInputs;
+  for (int width : {5, 4, 1}) {
+    DenseLayer L;
+    L.in = prev;
+    L.out = width;
+    for (int k = 0; k < width * prev; ++k) L.weights.push_back(rng.uniform() - 0.5);
+    for (int k = 0; k < width; ++k) L.biases.push_back(rng.uniform() - 0.5);
+    L.activation = width == 1 ? Activation::Identity : hidden;
+    net.layers.push_back(L);
+    prev = width;
+  }
+  return net;
+}
+
+double rel_err(double a, double b) { return std::abs(a - b) / std::max({std::abs(a), std::abs(b), 1e-8}); }
+}  // namespace
+
+TEST_CASE("traction network gradients match central differences", "[gradients]") {
+  for (Activation hidden : {Activation::Tanh, Activation::Sigmoid, Activation::Softplus}) {
+    TractionNet net = random_net(7 + static_cast<uint64_t>(hidden), hidden);
+    const double x[TractionNet::kInputs] = {0.3, 0.55, 0.21, -0.13, 0.4, -0.2};
+    const double dK = 1.7;  // an upstream gradient
+    double d_in[TractionNet::kInputs] = {0};
+    std::vector<double> d_par(net.parameter_count(), 0);
+    double K = net.eval_backward(x, dK, d_in, d_par.data());
+    CHECK(K == net.eval(x));
+    const double h = 1e-6;
+    double worst = 0;
+    for (int i = 0; i < TractionNet::kInputs; ++i) {
+      double xp[TractionNet::kInputs], xm[TractionNet::kInputs];
+      std::copy(x, x + TractionNet::kInputs, xp);
+      std::copy(x, x + TractionNet::kInputs, xm);
+      xp[i] += h;
+      xm[i] -= h;
+      double fd = dK * (net.eval(xp) - net.eval(xm)) / (2 * h);
+      worst = std::max(worst, rel_err(d_in[i], fd));
+    }
+    std::vector<double> p = net.parameters();
+    for (size_t k = 0; k < p.size(); ++k) {
+      TractionNet a = net, b = net;
+      std::vector<double> pp = p, pm = p;
+      pp[k] += h;
+      pm[k] -= h;
+      a.set_parameters(pp);
+      b.set_parameters(pm);
+      double fd = dK * (a.eval(x) - b.eval(x)) / (2 * h);
+      worst = std::max(worst, rel_err(d_par[k], fd));
+    }
+    INFO("activation " << activation_name(hidden));
+    CHECK(worst < 1e-6);
+  }
+}
+
+TEST_CASE("flat parameters round-trip and are validated", "[gradients]") {
+  TractionNet net = Model::default_model().traction;
+  std::vector<double> p = net.parameters();
+  CHECK(p.size() == net.parameter_count());
+  net.set_parameters(p);
+  CHECK(net.parameters() == p);
+  CHECK_THROWS_WITH(net.set_parameters({1, 2}), Catch::Contains("parameters, got 2"));
+  p[0] = std::nan("");
+  CHECK_THROWS_WITH(net.set_parameters(p), Catch::Contains("finite"));
+}
+
+TEST_CASE("Adam finds the minimum of a quadratic and clips large gradients", "[gradients]") {
+  std::vector<double> x = {5, -3, 0.5};
+  const std::vector<double> target = {1, 2, -1};
+  Adam adam(3, 0.05);
+  adam.set_clip_norm(1.0);
+  for (int it = 0; it < 2000; ++it) {
+    std::vector<double> g(3);
+    for (int i = 0; i < 3; ++i) g[static_cast<size_t>(i)] = 2 * (x[static_cast<size_t>(i)] - target[static_cast<size_t>(i)]) * 100;
+    adam.step(x, g);
+  }
+  for (int i = 0; i < 3; ++i) CHECK(x[static_cast<size_t>(i)] == Approx(target[static_cast<size_t>(i)]).margin(1e-3));
+  std::vector<double> bad = {std::nan(""), 0, 0};
+  CHECK_THROWS_WITH(adam.step(x, bad), Catch::Contains("not finite"));
+}
