@@ -2,7 +2,9 @@
 // and every weight and bias), and Adam on a problem with a known minimum.
 #include <catch2/catch.hpp>
 #include <cmath>
+#include <cstdio>
 
+#include "engine/adjoint.hpp"
 #include "engine/optim.hpp"
 #include "engine/traction.hpp"
 #include "support.hpp"
@@ -62,6 +64,7 @@ TEST_CASE("traction network gradients match central differences", "[gradients]")
       worst = std::max(worst, rel_err(d_par[k], fd));
     }
     INFO("activation " << activation_name(hidden));
+    std::printf("gradients network (%s hidden): worst relative error %.2e\n", activation_name(hidden), worst);
     CHECK(worst < 1e-6);
   }
 }
@@ -90,4 +93,102 @@ TEST_CASE("Adam finds the minimum of a quadratic and clips large gradients", "[g
   for (int i = 0; i < 3; ++i) CHECK(x[static_cast<size_t>(i)] == Approx(target[static_cast<size_t>(i)]).margin(1e-3));
   std::vector<double> bad = {std::nan(""), 0, 0};
   CHECK_THROWS_WITH(adam.step(x, bad), Catch::Contains("not finite"));
+}
+
+namespace {
+// A small cluster of agents inside each other's comfort zones, with a network on the traction.
+struct Cluster {
+  Geometry geo;
+  World w;
+  Model model;
+  std::vector<NavField> navs;
+  std::vector<Behaviour> behaviours = std::vector<Behaviour>(1);
+  std::vector<BodyForce> forces;
+  NeighbourGrid nb;
+  ThreadPool pool{1};
+  Cluster() {
+    geo.lo = Vec2(-5, -5);
+    geo.hi = Vec2(5, 5);
+    model = Model::default_model();
+    model.traction = random_net(3, Activation::Tanh);
+    Rng rng(11);
+    for (int k = 0; k < 9; ++k) {
+      AgentDef a;
+      a.position = Vec2((k % 3) * 0.5 + 0.1 * rng.uniform(), (k / 3) * 0.5 + 0.1 * rng.uniform());
+      a.velocity = Vec2(rng.uniform() - 0.5, rng.uniform() - 0.5);
+      a.body_radius = 0.2;
+      a.comfort_distance = 0.3 + 0.05 * rng.uniform();
+      w.add(a);
+      w.heading.back() = Vec2(std::cos(k), std::sin(k));
+    }
+    nb.init(geo, 1.0);
+  }
+  std::vector<Vec2> forces_now() {
+    StepInputs in{model, geo, navs, behaviours, forces, 0.01};
+    nb.build(w, pool);
+    kernel_traction(in, nb, w, pool);
+    return w.pair_force;
+  }
+};
+}  // namespace
+
+TEST_CASE("pair traction adjoint matches central differences", "[gradients]") {
+  Cluster c;
+  const size_t n = c.w.size();
+  std::vector<Vec2> weights(n);  // L = sum_p weights_p . f_p
+  Rng rng(5);
+  for (auto& wv : weights) wv = Vec2(rng.uniform() - 0.5, rng.uniform() - 0.5);
+  auto loss = [&]() {
+    std::vector<Vec2> f = c.forces_now();
+    double L = 0;
+    for (size_t p = 0; p < n; ++p) L += weights[p].dot(f[p]);
+    return L;
+  };
+  loss();
+  TractionAdjoint adj;
+  adj.reset(n, c.model.traction.parameter_count());
+  StepInputs in{c.model, c.geo, c.navs, c.behaviours, c.forces, 0.01};
+  kernel_traction_adjoint(in, c.nb, c.w, weights, adj);
+  const double h = 1e-6;
+  double worst = 0;
+  int pairs_checked = 0;
+  auto check = [&](double analytic, double& slot) {
+    const double keep = slot;
+    slot = keep + h;
+    const double up = loss();
+    slot = keep - h;
+    const double down = loss();
+    slot = keep;
+    const double fd = (up - down) / (2 * h);
+    worst = std::max(worst, rel_err(analytic, fd));
+    ++pairs_checked;
+  };
+  for (size_t p = 0; p < n; ++p) {
+    for (int a = 0; a < 2; ++a) {
+      check(adj.x[p][a], c.w.x[p][a]);
+      check(adj.v[p][a], c.w.v[p][a]);
+      check(adj.heading[p][a], c.w.heading[p][a]);
+    }
+    check(adj.comfort[p], c.w.comfort[p]);
+  }
+  std::vector<double> theta = c.model.traction.parameters();
+  for (size_t k = 0; k < theta.size(); ++k) {
+    std::vector<double> tp = theta, tm = theta;
+    tp[k] += h;
+    tm[k] -= h;
+    c.model.traction.set_parameters(tp);
+    const double up = loss();
+    c.model.traction.set_parameters(tm);
+    const double down = loss();
+    c.model.traction.set_parameters(theta);
+    worst = std::max(worst, rel_err(adj.network[k], (up - down) / (2 * h)));
+    ++pairs_checked;
+  }
+  INFO("worst relative error " << worst << " over " << pairs_checked << " derivatives");
+  std::printf("gradients traction adjoint: %d derivatives, worst relative error %.2e\n", pairs_checked, worst);
+  double fsum = 0;
+  for (const auto& f : c.w.pair_force) fsum += f.norm();
+  CHECK(fsum > 1);  // the cluster is in contact: forces are not trivially zero
+  CHECK(pairs_checked == static_cast<int>(7 * n + theta.size()));
+  CHECK(worst < 1e-5);
 }
