@@ -24,6 +24,24 @@ struct TractionAdjoint {
 void kernel_traction_adjoint(const StepInputs& in, const NeighbourGrid& nb, const World& w,
                              const std::vector<Vec2>& force_bar, TractionAdjoint& out);
 
+// Adjoints of the grid transfer: P2G, grid update, G2P (kernels 3, 5, 6) of the crowd and fluid
+// materials, from the particle state before it (x, v, C, J and the particle accelerations a and
+// pair forces f) to the state after it (x', v', C', J').
+struct TransferAdjoint {
+  std::vector<Vec2> x, v, accel, force;
+  std::vector<Mat2> C;
+  std::vector<double> J;
+  double E = 0, gamma = 0, tension_scale = 0, alignment_time = 0;
+  void reset(size_t particles);
+};
+
+// `before` is the state the forward transfer started from (with accel and pair_force set); the
+// grid is recomputed from it. x_bar ... J_bar are dL/d(state after). Where the forward clamped
+// (speed above max_speed, J at its bounds) the clamped quantity passes no gradient. Serial.
+void kernel_transfer_adjoint(const StepInputs& in, const Grid& grid_shape, const World& before,
+                             const std::vector<Vec2>& x_bar, const std::vector<Vec2>& v_bar,
+                             const std::vector<Mat2>& C_bar, const std::vector<double>& J_bar, TransferAdjoint& out);
+
 // d phi / d d and d phi / d c of contact_potential.
 void contact_potential_grad(double d, double theta1, double c, double eps, double& dphi_dd, double& dphi_dc);
 

@@ -192,3 +192,99 @@ TEST_CASE("pair traction adjoint matches central differences", "[gradients]") {
   CHECK(pairs_checked == static_cast<int>(7 * n + theta.size()));
   CHECK(worst < 1e-5);
 }
+
+TEST_CASE("grid transfer adjoint (P2G, grid update, G2P) matches central differences", "[gradients]") {
+  Geometry geo;
+  geo.lo = Vec2(0, 0);
+  geo.hi = Vec2(6, 6);
+  geo.solids.push_back(Shape::circle(Vec2(3.6, 3.0), 0.6));  // nodes inside it get the boundary condition
+  Model model = Model::default_model();
+  model.set("tension_scale", 0.5);  // J above 1 stays unclamped (J <= 4)
+  model.set("max_speed", 20);
+  model.set("wall_friction", 0.2);
+  Grid grid;
+  grid.init(geo, 0.5);
+  World base;
+  Rng rng(21);
+  for (int k = 0; k < 12; ++k) {
+    AgentDef a;
+    a.position = Vec2(2.0 + 0.9 * rng.uniform(), 2.2 + 1.6 * rng.uniform());
+    a.velocity = Vec2(1.0 + rng.uniform(), rng.uniform() - 0.5);  // towards the obstacle
+    base.add(a);
+    base.C.back() << rng.uniform() - 0.5, rng.uniform() - 0.5, rng.uniform() - 0.5, rng.uniform() - 0.5;
+    base.J.back() = 0.7 + 0.5 * rng.uniform();  // both sides of 1
+    base.accel.back() = Vec2(rng.uniform() - 0.5, rng.uniform() - 0.5);
+    base.pair_force.back() = Vec2(rng.uniform() - 0.5, rng.uniform() - 0.5);
+  }
+  const size_t n = base.size();
+  std::vector<Vec2> wx(n), wv(n);
+  std::vector<Mat2> wC(n);
+  std::vector<double> wJ(n);
+  for (size_t p = 0; p < n; ++p) {
+    wx[p] = Vec2(rng.uniform() - 0.5, rng.uniform() - 0.5);
+    wv[p] = Vec2(rng.uniform() - 0.5, rng.uniform() - 0.5);
+    wC[p] << rng.uniform() - 0.5, rng.uniform() - 0.5, rng.uniform() - 0.5, rng.uniform() - 0.5;
+    wJ[p] = rng.uniform() - 0.5;
+  }
+  std::vector<NavField> navs;
+  std::vector<Behaviour> behaviours(1);
+  std::vector<BodyForce> forces;
+  ThreadPool pool(1);
+  auto loss = [&](const World& start, const Model& mdl) {
+    World w = start;
+    StepInputs in{mdl, geo, navs, behaviours, forces, 0.01};
+    kernel_p2g(in, w, grid, pool);
+    kernel_grid_update(in, grid, pool);
+    kernel_g2p(in, grid, w, pool);
+    double L = 0;
+    for (size_t p = 0; p < n; ++p) L += wx[p].dot(w.x[p]) + wv[p].dot(w.v[p]) + (wC[p].cwiseProduct(w.C[p])).sum() + wJ[p] * w.J[p];
+    return L;
+  };
+  long constrained = 0;
+  {
+    World w = base;
+    StepInputs in{model, geo, navs, behaviours, forces, 0.01};
+    kernel_p2g(in, w, grid, pool);
+    for (size_t k = 0; k < grid.nodes(); ++k) constrained += grid.solid[k] && grid.mass[k] > 0;
+  }
+  CHECK(constrained > 0);  // the boundary condition is exercised
+  TransferAdjoint adj;
+  adj.reset(n);
+  StepInputs in{model, geo, navs, behaviours, forces, 0.01};
+  kernel_transfer_adjoint(in, grid, base, wx, wv, wC, wJ, adj);
+  const double h = 1e-5;  // larger steps lose to curvature, smaller ones to round-off
+  double worst = 0;
+  int count = 0;
+  auto fd_state = [&](double analytic, auto&& slot_of) {
+    World up = base, down = base;
+    slot_of(up) += h;
+    slot_of(down) -= h;
+    double fd = (loss(up, model) - loss(down, model)) / (2 * h);
+    if (rel_err(analytic, fd) > 1e-6) std::printf("  derivative %d: adjoint %.10g differences %.10g\n", count, analytic, fd);
+    worst = std::max(worst, rel_err(analytic, fd));
+    ++count;
+  };
+  for (size_t p = 0; p < n; ++p)
+    for (int a = 0; a < 2; ++a) {
+      fd_state(adj.x[p][a], [&](World& w) -> double& { return w.x[p][a]; });
+      fd_state(adj.v[p][a], [&](World& w) -> double& { return w.v[p][a]; });
+      fd_state(adj.accel[p][a], [&](World& w) -> double& { return w.accel[p][a]; });
+      fd_state(adj.force[p][a], [&](World& w) -> double& { return w.pair_force[p][a]; });
+      for (int b = 0; b < 2; ++b) fd_state(adj.C[p](a, b), [&](World& w) -> double& { return w.C[p](a, b); });
+    }
+  for (size_t p = 0; p < n; ++p) fd_state(adj.J[p], [&](World& w) -> double& { return w.J[p]; });
+  for (auto [name, analytic] : {std::pair<const char*, double>{"E", adj.E}, {"gamma", adj.gamma},
+                                {"tension_scale", adj.tension_scale}, {"alignment_time", adj.alignment_time}}) {
+    Model up = model, down = model;
+    up.set(name, model.get(name) + h);
+    down.set(name, model.get(name) - h);
+    double fd = (loss(base, up) - loss(base, down)) / (2 * h);
+    INFO("parameter " << name << ": adjoint " << analytic << ", differences " << fd);
+    CHECK(rel_err(analytic, fd) < 1e-5);
+    worst = std::max(worst, rel_err(analytic, fd));
+    ++count;
+  }
+  std::printf("gradients transfer adjoint: %d derivatives, %ld constrained nodes, worst relative error %.2e\n", count,
+              constrained, worst);
+  CHECK(worst < 1e-5);
+}
