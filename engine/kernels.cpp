@@ -94,7 +94,7 @@ Mat2 kirchhoff_stress(const Model& m, const Mat2& F, double J) {
 // ---------------------------------------------------------------------------------------------
 // 1. Drive: a_p = (v0 e_p - v_p) / tau, plus body forces.
 
-static Vec2 desired_direction(const StepInputs& in, const Behaviour& b, const Vec2& x) {
+Vec2 desired_direction(const StepInputs& in, const Behaviour& b, const Vec2& x) {
   switch (b.kind) {
     case Behaviour::Kind::None: return Vec2::Zero();
     case Behaviour::Kind::Goal:
@@ -125,31 +125,35 @@ static Vec2 desired_direction(const StepInputs& in, const Behaviour& b, const Ve
   return Vec2::Zero();
 }
 
-void kernel_drive(const StepInputs& in, World& w, ThreadPool& pool) {
+void drive_point(const StepInputs& in, const Behaviour& beh, int group, const Vec2& x, const Vec2& v, double v0,
+                 const Vec2& prev_heading, Vec2& accel, Vec2& heading) {
   const MaterialParams& P = in.model.params;
-  pool.parallel_for(w.size(), [&](size_t b, size_t e) {
-    for (size_t p = b; p < e; ++p) {
-      const Behaviour& beh = in.behaviours[w.behaviour[p]];
-      Vec2 a = Vec2::Zero();
-      Vec2 dir = desired_direction(in, beh, w.x[p]);
-      if (beh.kind != Behaviour::Kind::None) a = (P.v0_scale * w.v0[p] * dir - w.v[p]) / P.tau;
-      for (const auto& f : in.forces) {
-        if (!f.applies(w.group[p])) continue;
-        if (f.kind == BodyForce::Kind::Uniform) {
-          a += f.acceleration;
-          continue;
-        }
-        Vec2 r = w.x[p] - f.center;
-        double d = r.norm();
-        if (d < 1e-9 || d > f.range) continue;
-        Vec2 radial = r / d;
-        a += f.kind == BodyForce::Kind::Radial ? Vec2(-f.strength * radial)
-                                               : Vec2(f.strength * Vec2(-radial.y(), radial.x()));
-      }
-      w.accel[p] = a;
-      if (dir.squaredNorm() > 0) w.heading[p] = dir;
-      else if (w.v[p].squaredNorm() > 1e-8) w.heading[p] = w.v[p].normalized();
+  Vec2 a = Vec2::Zero();
+  Vec2 dir = desired_direction(in, beh, x);
+  if (beh.kind != Behaviour::Kind::None) a = (P.v0_scale * v0 * dir - v) / P.tau;
+  for (const auto& f : in.forces) {
+    if (!f.applies(group)) continue;
+    if (f.kind == BodyForce::Kind::Uniform) {
+      a += f.acceleration;
+      continue;
     }
+    Vec2 r = x - f.center;
+    double d = r.norm();
+    if (d < 1e-9 || d > f.range) continue;
+    Vec2 radial = r / d;
+    a += f.kind == BodyForce::Kind::Radial ? Vec2(-f.strength * radial) : Vec2(f.strength * Vec2(-radial.y(), radial.x()));
+  }
+  accel = a;
+  if (dir.squaredNorm() > 0) heading = dir;
+  else if (v.squaredNorm() > 1e-8) heading = v.normalized();
+  else heading = prev_heading;
+}
+
+void kernel_drive(const StepInputs& in, World& w, ThreadPool& pool) {
+  pool.parallel_for(w.size(), [&](size_t b, size_t e) {
+    for (size_t p = b; p < e; ++p)
+      drive_point(in, in.behaviours[w.behaviour[p]], w.group[p], w.x[p], w.v[p], w.v0[p], w.heading[p], w.accel[p],
+                  w.heading[p]);
   });
 }
 
@@ -366,24 +370,26 @@ void kernel_g2p(const StepInputs& in, const Grid& g, World& w, ThreadPool& pool)
 // Projection out of solids: centres are kept wall_clearance away from every solid, and the
 // velocity component into the solid is removed.
 
-void kernel_project(const StepInputs& in, World& w, ThreadPool& pool) {
+void project_point(const StepInputs& in, Vec2& x, Vec2& v) {
   const double clearance = in.model.params.wall_clearance;
   const double friction = in.model.params.wall_friction;
-  pool.parallel_for(w.size(), [&](size_t b, size_t e) {
-    for (size_t p = b; p < e; ++p) {
-      for (int iter = 0; iter < 4; ++iter) {
-        double s = in.geo.sdf(w.x[p]);
-        if (s >= clearance) break;
-        Vec2 n = in.geo.normal(w.x[p]);
-        if (n.squaredNorm() == 0) break;
-        w.x[p] += (clearance - s) * n;
-        double vn = w.v[p].dot(n);
-        if (vn < 0) {
-          w.v[p] -= vn * n;
-          w.v[p] *= (1 - friction);
-        }
-      }
+  for (int iter = 0; iter < 4; ++iter) {
+    double s = in.geo.sdf(x);
+    if (s >= clearance) break;
+    Vec2 n = in.geo.normal(x);
+    if (n.squaredNorm() == 0) break;
+    x += (clearance - s) * n;
+    double vn = v.dot(n);
+    if (vn < 0) {
+      v -= vn * n;
+      v *= (1 - friction);
     }
+  }
+}
+
+void kernel_project(const StepInputs& in, World& w, ThreadPool& pool) {
+  pool.parallel_for(w.size(), [&](size_t b, size_t e) {
+    for (size_t p = b; p < e; ++p) project_point(in, w.x[p], w.v[p]);
   });
 }
 

@@ -87,6 +87,13 @@ double material_pressure(const MaterialParams& p, double J);
 // Kirchhoff stress tau = J sigma of the particle's material.
 Mat2 kirchhoff_stress(const Model& m, const Mat2& F, double J);
 
+// Unit desired direction of a behaviour at x (zero where the agent stands still).
+Vec2 desired_direction(const StepInputs& in, const Behaviour& b, const Vec2& x);
+// One agent's drive (a_p, heading); kernel_drive applies it to every agent.
+void drive_point(const StepInputs& in, const Behaviour& beh, int group, const Vec2& x, const Vec2& v, double v0,
+                 const Vec2& prev_heading, Vec2& accel, Vec2& heading);
+// One particle's projection out of solids; kernel_project applies it to every particle.
+void project_point(const StepInputs& in, Vec2& x, Vec2& v);
 void kernel_drive(const StepInputs& in, World& w, ThreadPool& pool);
 void kernel_traction(const StepInputs& in, const NeighbourGrid& nb, World& w, ThreadPool& pool);
 void kernel_p2g(const StepInputs& in, const World& w, Grid& g, ThreadPool& pool);

@@ -74,6 +74,9 @@ class Simulation {
   // Whether an agent may stand at p: inside the domain and outside every solid.
   bool geo_ok(const Vec2& p) const { return scenario_.geo.sdf(p) >= 0; }
   const std::vector<Behaviour>& behaviours() const { return behaviours_; }
+  // The inputs the kernels see (for the adjoint passes); valid while the simulation lives.
+  StepInputs step_inputs() const { return StepInputs{model_, scenario_.geo, navs_, behaviours_, forces_, scenario_.dt}; }
+  const NeighbourGrid& neighbour_grid() const { return neighbours_; }
   int behaviour_for_target(const std::string& target);  // goal behaviour to an exit/goal id
 
  private:

@@ -3,8 +3,12 @@
 #include <catch2/catch.hpp>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 
 #include "engine/adjoint.hpp"
+#include "engine/differentiable.hpp"
+#include <memory>
+#include <string>
 #include "engine/optim.hpp"
 #include "engine/traction.hpp"
 #include "support.hpp"
@@ -29,7 +33,8 @@ TractionNet random_net(uint64_t seed, Activation hidden) {
   return net;
 }
 
-double rel_err(double a, double b) { return std::abs(a - b) / std::max({std::abs(a), std::abs(b), 1e-8}); }
+// Relative error, with a floor for derivatives at the finite differences' noise level.
+double rel_err(double a, double b) { return std::abs(a - b) / std::max({std::abs(a), std::abs(b), 1e-6}); }
 }  // namespace
 
 TEST_CASE("traction network gradients match central differences", "[gradients]") {
@@ -286,5 +291,196 @@ TEST_CASE("grid transfer adjoint (P2G, grid update, G2P) matches central differe
   }
   std::printf("gradients transfer adjoint: %d derivatives, %ld constrained nodes, worst relative error %.2e\n", count,
               constrained, worst);
+  CHECK(worst < 1e-5);
+}
+
+namespace {
+// A room with walls, an obstacle, an exit nobody reaches in the window, and a dense group in
+// contact walking to it, with a random traction network: every part of the step is active.
+const char* kGradientScene = R"({"format": "crowdmpm-scenario", "version": 1, "name": "gradient scene",
+  "domain": {"min": [0, 0], "max": [8, 5], "cell_size": 0.5}, "time": {"dt": 0.01, "duration": 10},
+  "geometry": {"walls": [{"points": [[5, 0], [5, 2]], "thickness": 0.2}],
+               "obstacles": [{"circle": {"center": [3.6, 3.2], "radius": 0.4}}],
+               "exits": [{"id": "out", "rect": [7.5, 0, 8, 5]}]},
+  "groups": [{"spawn": {"rect": [1.0, 1.0, 3.0, 3.4]}, "count": 14, "desired_speed": 1.2,
+              "behaviour": {"type": "goal", "target": "out"}}]})";
+
+Model gradient_model() {
+  Model m = Model::default_model();
+  m.traction = random_net(5, Activation::Tanh);
+  m.set("tension_scale", 0.4);  // J may rise above 1 unclamped
+  m.set("max_speed", 10);
+  return m;
+}
+}  // namespace
+
+namespace {
+// Worst relative error of the window gradient against five-point differences, over every
+// parameter group (E, gamma, tension_scale, tau, v0_scale, comfort_distance, alignment_time,
+// every third network weight) and the initial x and v of every third agent.
+double window_gradient_error(int steps) {
+  const ScenarioDef s = ScenarioDef::parse_text(kGradientScene);
+  Rng rng(99);
+  std::vector<std::vector<Vec2>> target(steps + 1);
+  // Loss: sum over steps and agents of |x - x_target|^2 with arbitrary targets.
+  auto make_sim = [&](const Model& m) { return std::make_unique<Simulation>(s, m, 1); };
+  {
+    auto sim = make_sim(gradient_model());
+    for (int k = 1; k <= steps; ++k)
+      for (size_t p = 0; p < sim->world().size(); ++p) target[static_cast<size_t>(k)].push_back(Vec2(4 * rng.uniform(), 4 * rng.uniform()));
+  }
+  auto loss_of = [&](Simulation& sim) {
+    double L = 0;
+    for (int k = 1; k <= steps; ++k) {
+      sim.step();
+      for (size_t p = 0; p < sim.world().size(); ++p) L += (sim.world().x[p] - target[static_cast<size_t>(k)][p]).squaredNorm();
+    }
+    return L;
+  };
+  Model model = gradient_model();
+  auto sim = make_sim(model);
+  // The scene must exercise contacts and the traction network.
+  REQUIRE(sim->pair_stats().pairs > 10);
+  WindowGradient wg;
+  ModelGradient g = wg.run(*sim, steps, [&](int k, const World& w, std::vector<Vec2>& d) {
+    for (size_t p = 0; p < w.size(); ++p) d[p] = 2 * (w.x[p] - target[static_cast<size_t>(k)][p]);
+    return true;
+  });
+  double worst = 0;
+  int count = 0;
+  auto compare = [&](const char* what, double analytic, double fd) {
+    double e = rel_err(analytic, fd);
+    worst = std::max(worst, e);
+    ++count;
+  };
+  // Five-point central differences (error O(h^4)) with h = 1e-4: small enough to stay on one
+  // side of the step's kinks, large enough that round-off in the loss does not swamp small
+  // derivatives.
+  const double h = 1e-4;
+  auto five_point = [&](auto&& loss_at) {
+    return (-loss_at(2 * h) + 8 * loss_at(h) - 8 * loss_at(-h) + loss_at(-2 * h)) / (12 * h);
+  };
+  for (auto [name, analytic] : {std::pair<const char*, double>{"E", g.E}, {"gamma", g.gamma}, {"tension_scale", g.tension_scale},
+                                {"tau", g.tau}, {"v0_scale", g.v0_scale}, {"comfort_distance", g.comfort_distance},
+                                {"alignment_time", g.alignment_time}}) {
+    compare(name, analytic, five_point([&](double dh) {
+      Model m = model;
+      m.set(name, model.get(name) + dh);
+      auto sm = make_sim(m);  // agents take the model's comfort distance
+      return loss_of(*sm);
+    }));
+  }
+  const std::vector<double> theta = model.traction.parameters();
+  for (size_t k = 0; k < theta.size(); k += 3) {
+    compare("network", g.network[k], five_point([&](double dh) {
+      Model m = model;
+      std::vector<double> t2 = theta;
+      t2[k] += dh;
+      m.traction.set_parameters(t2);
+      auto sm = make_sim(m);
+      return loss_of(*sm);
+    }));
+  }
+  for (size_t p = 0; p < g.x0.size(); p += 3)
+    for (int a = 0; a < 2; ++a) {
+      compare("x0", g.x0[p][a], five_point([&](double dh) {
+        auto sm = make_sim(model);
+        sm->world().x[p][a] += dh;
+        return loss_of(*sm);
+      }));
+      compare("v0", g.v0[p][a], five_point([&](double dh) {
+        auto sm = make_sim(model);
+        sm->world().v[p][a] += dh;
+        return loss_of(*sm);
+      }));
+    }
+  std::printf("gradients window (%d steps, %zu agents): %d derivatives, worst relative error %.2e, %zu bytes stored per agent-step\n",
+              steps, g.x0.size(), count, worst, wg.stored_bytes_per_agent_step());
+  return worst;
+}
+}  // namespace
+
+TEST_CASE("one-step window gradient matches central differences for every parameter group and the initial state", "[gradients]") {
+  CHECK(window_gradient_error(1) < 1e-5);
+}
+
+TEST_CASE("multi-step window gradient: known discrepancy, guarded against getting worse", "[gradients]") {
+  // Over 12 steps the adjoint and the differences still differ by up to ~3e-3 (relative) in
+  // the initial velocities; the error vanishes with E -> 0 or without contacts, so it sits in
+  // how the continuum stress and the pair forces of later steps flow back. Open: the learning
+  // issue's gradient-check acceptance (1e-5) is not met yet. This bound only catches regressions.
+  CHECK(window_gradient_error(12) < 1e-2);
+}
+
+TEST_CASE("two grid transfers with a velocity-dependent drive compose", "[gradients]") {
+  Geometry geo;
+  geo.lo = Vec2(0, 0);
+  geo.hi = Vec2(6, 6);
+  Model model = Model::default_model();
+  model.set("tension_scale", 0.4);
+  model.set("max_speed", 10);
+  Grid grid;
+  grid.init(geo, 0.5);
+  World base;
+  Rng rng(21);
+  for (int k = 0; k < 12; ++k) {
+    AgentDef a;
+    a.position = Vec2(2.0 + 0.9 * rng.uniform(), 2.2 + 1.6 * rng.uniform());
+    a.velocity = Vec2(1.0 + rng.uniform(), rng.uniform() - 0.5);
+    base.add(a);
+  }
+  const size_t n = base.size();
+  std::vector<NavField> navs;
+  std::vector<Behaviour> behaviours(1);
+  std::vector<BodyForce> forces;
+  ThreadPool pool(1);
+  StepInputs in{model, geo, navs, behaviours, forces, 0.01};
+  auto transfer = [&](World& w) {
+    for (size_t p = 0; p < w.size(); ++p) w.accel[p] = -w.v[p] / 0.5;  // a drive towards rest
+    kernel_p2g(in, w, grid, pool);
+    kernel_grid_update(in, grid, pool);
+    kernel_g2p(in, grid, w, pool);
+  };
+  auto loss = [&](World w) {
+    transfer(w);
+    transfer(w);
+    double L = 0;
+    for (size_t p = 0; p < n; ++p) L += w.x[p].x() + 0.3 * w.x[p].y();
+    return L;
+  };
+  // Backward: second transfer from the state after the first, then the first.
+  World mid = base;
+  transfer(mid);
+  for (size_t p = 0; p < n; ++p) {
+    base.accel[p] = -base.v[p] / 0.5;
+    mid.accel[p] = -mid.v[p] / 0.5;
+  }
+  std::vector<Vec2> xb(n, Vec2(1, 0.3)), vb(n, Vec2::Zero());
+  std::vector<Mat2> Cb(n, Mat2::Zero());
+  std::vector<double> Jb(n, 0);
+  TransferAdjoint a2, a1;
+  a2.reset(n);
+  kernel_transfer_adjoint(in, grid, mid, xb, vb, Cb, Jb, a2);
+  for (size_t p = 0; p < n; ++p) a2.v[p] += -a2.accel[p] / 0.5;
+  a1.reset(n);
+  kernel_transfer_adjoint(in, grid, base, a2.x, a2.v, a2.C, a2.J, a1);
+  for (size_t p = 0; p < n; ++p) a1.v[p] += -a1.accel[p] / 0.5;
+  double worst = 0;
+  const double h = 1e-5;
+  for (size_t p = 0; p < n; ++p)
+    for (int a = 0; a < 2; ++a) {
+      World up = base, down = base;
+      up.v[p][a] += h;
+      down.v[p][a] -= h;
+      double fd = (loss(up) - loss(down)) / (2 * h);
+      worst = std::max(worst, rel_err(a1.v[p][a], fd));
+      up = base;
+      down = base;
+      up.x[p][a] += h;
+      down.x[p][a] -= h;
+      fd = (loss(up) - loss(down)) / (2 * h);
+      worst = std::max(worst, rel_err(a1.x[p][a], fd));
+    }
+  std::printf("gradients two transfers: worst relative error %.2e\n", worst);
   CHECK(worst < 1e-5);
 }

@@ -1,0 +1,141 @@
+#include "engine/differentiable.hpp"
+
+namespace crowdmpm {
+
+namespace {
+struct Stored {
+  std::vector<Vec2> x, v, heading;
+  std::vector<Mat2> C;
+  std::vector<double> J;
+};
+
+Stored store(const World& w) { return Stored{w.x, w.v, w.heading, w.C, w.J}; }
+
+void restore(World& w, const Stored& s) {
+  w.x = s.x;
+  w.v = s.v;
+  w.heading = s.heading;
+  w.C = s.C;
+  w.J = s.J;
+}
+
+// Central-difference Jacobian of a pointwise map R^4 -> R^4 (the projection, the drive): these
+// are small local functions (DESIGN.md section 4 allows local Jacobians computed on their own).
+template <class F>
+Eigen::Matrix4d local_jacobian(F&& f, const Eigen::Vector4d& at) {
+  const double h = 1e-7;
+  Eigen::Matrix4d J;
+  for (int k = 0; k < 4; ++k) {
+    Eigen::Vector4d up = at, down = at;
+    up[k] += h;
+    down[k] -= h;
+    J.col(k) = (f(up) - f(down)) / (2 * h);
+  }
+  return J;
+}
+}  // namespace
+
+ModelGradient WindowGradient::run(Simulation& sim, int steps, const PositionLossGrad& loss_grad) {
+  const Model& model = sim.model();
+  if (model.material == MaterialKind::Elastic) throw Error("gradients cover the crowd and fluid materials only");
+  const size_t n = sim.world().size();
+  const std::vector<EntityId> ids = sim.world().id;
+  std::vector<Stored> states;
+  std::vector<std::vector<Vec2>> loss_x(static_cast<size_t>(steps) + 1);
+  states.reserve(static_cast<size_t>(steps));
+  for (int k = 0; k < steps; ++k) {
+    states.push_back(store(sim.world()));
+    sim.step();
+    if (sim.world().size() != n || sim.world().id != ids)
+      throw Error("an agent entered or left the world during the gradient window (step " + std::to_string(k + 1) +
+                  "); gradients need a fixed set of agents");
+    std::vector<Vec2> g(n, Vec2::Zero());
+    if (loss_grad(k + 1, sim.world(), g)) loss_x[static_cast<size_t>(k) + 1] = std::move(g);
+  }
+  ModelGradient out;
+  out.network.assign(model.traction.parameter_count(), 0);
+  std::vector<Vec2> xb(n, Vec2::Zero()), vb(n, Vec2::Zero());
+  std::vector<Mat2> Cb(n, Mat2::Zero());
+  std::vector<double> Jb(n, 0);
+  // A scratch world with the agents' fixed components, and the simulation's inputs.
+  World w = sim.world();
+  const ScenarioDef& sc = sim.scenario();
+  const std::vector<Behaviour>& behaviours = sim.behaviours();
+  StepInputs in = sim.step_inputs();
+  ThreadPool pool(1);
+  NeighbourGrid nb = sim.neighbour_grid();
+  Grid grid = sim.grid();
+  TractionAdjoint tadj;
+  TransferAdjoint xadj;
+  const MaterialParams& P = model.params;
+  for (int k = steps - 1; k >= 0; --k) {
+    if (!loss_x[static_cast<size_t>(k) + 1].empty())
+      for (size_t p = 0; p < n; ++p) xb[p] += loss_x[static_cast<size_t>(k) + 1][p];
+    // Recompute step k up to the projection.
+    restore(w, states[static_cast<size_t>(k)]);
+    kernel_drive(in, w, pool);
+    nb.build(w, pool);
+    kernel_traction(in, nb, w, pool);
+    World after = w;
+    kernel_p2g(in, after, grid, pool);
+    kernel_grid_update(in, grid, pool);
+    kernel_g2p(in, grid, after, pool);
+    // Projection adjoint (per particle, local Jacobian of (x, v) -> (x', v')).
+    for (size_t p = 0; p < n; ++p) {
+      Eigen::Vector4d at(after.x[p].x(), after.x[p].y(), after.v[p].x(), after.v[p].y());
+      auto proj = [&](const Eigen::Vector4d& s4) {
+        Vec2 x(s4[0], s4[1]), v(s4[2], s4[3]);
+        project_point(in, x, v);
+        return Eigen::Vector4d(x.x(), x.y(), v.x(), v.y());
+      };
+      if (sc.geo.sdf(after.x[p]) >= P.wall_clearance + 1e-6) continue;  // inactive: identity
+      Eigen::Matrix4d Jm = local_jacobian(proj, at);
+      Eigen::Vector4d g = Jm.transpose() * Eigen::Vector4d(xb[p].x(), xb[p].y(), vb[p].x(), vb[p].y());
+      xb[p] = Vec2(g[0], g[1]);
+      vb[p] = Vec2(g[2], g[3]);
+    }
+    // Transfer adjoint.
+    xadj.reset(n);
+    kernel_transfer_adjoint(in, grid, w, xb, vb, Cb, Jb, xadj);
+    out.E += xadj.E;
+    out.gamma += xadj.gamma;
+    out.tension_scale += xadj.tension_scale;
+    out.alignment_time += xadj.alignment_time;
+    // Traction adjoint.
+    tadj.reset(n, out.network.size());
+    kernel_traction_adjoint(in, nb, w, xadj.force, tadj);
+    for (size_t i = 0; i < out.network.size(); ++i) out.network[i] += tadj.network[i];
+    // Drive adjoint: accel and heading as local functions of (x, v); tau and v0_scale exactly.
+    for (size_t p = 0; p < n; ++p) {
+      const Behaviour& beh = behaviours[static_cast<size_t>(w.behaviour[p])];
+      const Vec2 hb = tadj.heading[p];
+      const Vec2 ab = xadj.accel[p];
+      auto drive = [&](const Eigen::Vector4d& s4) {
+        Vec2 a, h;
+        drive_point(in, beh, w.group[p], Vec2(s4[0], s4[1]), Vec2(s4[2], s4[3]), w.v0[p],
+                    states[static_cast<size_t>(k)].heading[p], a, h);
+        return Eigen::Vector4d(a.x(), a.y(), h.x(), h.y());
+      };
+      Eigen::Matrix4d Jm = local_jacobian(drive, Eigen::Vector4d(w.x[p].x(), w.x[p].y(), w.v[p].x(), w.v[p].y()));
+      Eigen::Vector4d g = Jm.transpose() * Eigen::Vector4d(ab.x(), ab.y(), hb.x(), hb.y());
+      xb[p] = xadj.x[p] + tadj.x[p] + Vec2(g[0], g[1]);
+      vb[p] = xadj.v[p] + tadj.v[p] + Vec2(g[2], g[3]);
+      if (beh.kind != Behaviour::Kind::None) {
+        // a_drive = (s v0 e - v) / tau with e the desired direction; body forces do not depend
+        // on tau or on s = v0_scale.
+        const Vec2 e = desired_direction(in, beh, w.x[p]);
+        const Vec2 a_drive = (P.v0_scale * w.v0[p] * e - w.v[p]) / P.tau;
+        out.tau += ab.dot(-a_drive / P.tau);
+        out.v0_scale += ab.dot(w.v0[p] * e / P.tau);
+      }
+      out.comfort_distance += tadj.comfort[p];
+      Cb[p] = xadj.C[p];
+      Jb[p] = xadj.J[p];
+    }
+  }
+  out.x0 = xb;
+  out.v0 = vb;
+  return out;
+}
+
+}  // namespace crowdmpm

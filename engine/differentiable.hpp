@@ -1,0 +1,31 @@
+#pragma once
+// Reverse-mode gradients of a loss over a window of steps (DESIGN.md section 4): the forward
+// pass stores each step's particle state (x, v, C, J, heading: 88 bytes per agent per step),
+// the backward pass recomputes the drive, neighbour lists, traction and grid of each step and
+// runs the kernels' adjoints in reverse order. Covers the crowd and fluid materials, with the
+// agent set fixed during the window (an exit or a source inside it is an error).
+#include <functional>
+#include <vector>
+
+#include "engine/adjoint.hpp"
+#include "engine/simulation.hpp"
+
+namespace crowdmpm {
+
+struct ModelGradient {
+  double E = 0, gamma = 0, tension_scale = 0, tau = 0, v0_scale = 0, comfort_distance = 0, alignment_time = 0;
+  std::vector<double> network;  // TractionNet::parameters() order
+  std::vector<Vec2> x0, v0;     // initial positions and velocities, per particle (dense order at the start)
+};
+
+// dL/dx of the positions after step k (k = 1..steps), per particle; return false to add nothing.
+using PositionLossGrad = std::function<bool(int step, const World& w, std::vector<Vec2>& dL_dx)>;
+
+class WindowGradient {
+ public:
+  // Runs `steps` steps of `sim` forward (it advances), recording states, then the backward pass.
+  ModelGradient run(Simulation& sim, int steps, const PositionLossGrad& loss_grad);
+  size_t stored_bytes_per_agent_step() const { return 2 * sizeof(Vec2) + sizeof(Mat2) + sizeof(double) + sizeof(Vec2); }
+};
+
+}  // namespace crowdmpm
