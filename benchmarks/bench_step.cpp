@@ -3,11 +3,12 @@
 // directions. Prints one CSV row (see benchmarks/README.md for recorded results).
 //
 //   bench_step [--agents N] [--density D | --spacing S] [--threads T] [--steps S] [--warmup W]
-//              [--scenario FILE] [--header] [--profile] [--cost-model]
+//              [--scenario FILE] [--header] [--profile] [--cost-model] [--backward]
 // The default scene is a hexagonal lattice (rows walking east and west) at --density persons/m²
 // or with --spacing metres between neighbours (0.6 m is the peers' benchmark, 3.2 /m²).
 // --scenario runs a scenario file instead (e.g. scenarios/drill.json); agent-steps then count
-// the agents present at each step.
+// the agents present at each step. --backward times the gradient of a position loss over the
+// --steps window (WindowGradient) against the forward pass over the same window.
 // --profile prints each kernel's share of the step time; --cost-model adds flops and bytes per
 // agent-step and the fraction of this machine's measured limits (cost_model.hpp).
 #include <sys/utsname.h>
@@ -21,6 +22,7 @@
 #include <string>
 
 #include "cost_model.hpp"
+#include "engine/differentiable.hpp"
 #include "engine/simulation.hpp"
 
 using namespace crowdmpm;
@@ -30,7 +32,7 @@ int main(int argc, char** argv) {
   double density = 5, spacing = 0;
   std::string scenario_file;
   int threads = 1;
-  bool header = false, profile = false, cost_model = false;
+  bool header = false, profile = false, cost_model = false, backward = false;
   for (int i = 1; i < argc; ++i) {
     std::string a = argv[i];
     auto next = [&]() -> const char* {
@@ -47,6 +49,7 @@ int main(int argc, char** argv) {
     else if (a == "--header") header = true;
     else if (a == "--profile") profile = true;
     else if (a == "--cost-model") profile = cost_model = true;
+    else if (a == "--backward") backward = true;
     else { std::fprintf(stderr, "unknown option %s\n", a.c_str()); return 2; }
   }
   if (spacing > 0) density = 2 / (std::sqrt(3.0) * spacing * spacing);
@@ -94,6 +97,33 @@ int main(int argc, char** argv) {
   }
   Simulation& sim = *owned;
   sim.run_steps(warmup);
+  if (backward) {
+    // Forward alone, then forward with stored states plus the backward pass, same window.
+    std::vector<Vec2> x0 = sim.world().x, v0 = sim.world().v;
+    std::vector<Mat2> C0 = sim.world().C;
+    std::vector<double> J0 = sim.world().J;
+    auto reset = [&]() {
+      sim.world().x = x0;
+      sim.world().v = v0;
+      sim.world().C = C0;
+      sim.world().J = J0;
+    };
+    auto t0 = std::chrono::steady_clock::now();
+    sim.run_steps(steps);
+    const double forward = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    reset();
+    WindowGradient wg;
+    t0 = std::chrono::steady_clock::now();
+    ModelGradient g = wg.run(sim, static_cast<int>(steps), [](int, const World& w, std::vector<Vec2>& d) {
+      for (size_t p = 0; p < w.size(); ++p) d[p] = w.x[p];  // gradient of 0.5 |x|^2
+      return true;
+    });
+    const double both = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    std::printf("backward,agents=%ld,steps=%ld,threads=%d,forward_s=%.3f,forward_with_storage_and_backward_s=%.3f,"
+                "backward_over_forward=%.2f,stored_bytes_per_agent_step=%zu,dE=%.4g\n",
+                agents, steps, threads, forward, both, (both - forward) / forward, wg.stored_bytes_per_agent_step(), g.E);
+    return 0;
+  }
   sim.set_profiling(profile);
   double agent_steps = 0;
   auto t0 = std::chrono::steady_clock::now();

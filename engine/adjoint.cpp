@@ -121,7 +121,7 @@ struct NodeBC {
 
 void kernel_transfer_adjoint(const StepInputs& in, const Grid& shape, const World& w, const std::vector<Vec2>& x_bar,
                              const std::vector<Vec2>& v_bar, const std::vector<Mat2>& C_bar,
-                             const std::vector<double>& J_bar, TransferAdjoint& out) {
+                             const std::vector<double>& J_bar, TransferAdjoint& out, AfterHook after_hook, void* hook_ctx) {
   if (in.model.material == MaterialKind::Elastic)
     throw Error("the transfer adjoint covers the crowd and fluid materials (no deformation gradient)");
   const MaterialParams& P = in.model.params;
@@ -182,9 +182,14 @@ void kernel_transfer_adjoint(const StepInputs& in, const Grid& shape, const Worl
     const bool speed_clamped = v_new.norm() > P.max_speed;
     const double J_unclamped = w.J[p] * (1 + dt * Cn.trace());
     const bool J_clamped = J_unclamped < 0.2 || J_unclamped > j_max;
+    Vec2 xbp = x_bar[p], vbp = v_bar[p];
+    if (after_hook) {
+      const Vec2 v_after = speed_clamped ? Vec2(v_new * (P.max_speed / v_new.norm())) : v_new;
+      after_hook(hook_ctx, p, w.x[p] + dt * v_after, v_after, xbp, vbp);
+    }
     // x' = x + dt v'; J' = J (1 + dt tr C'); C' = Cn.
-    out.x[p] += x_bar[p];
-    Vec2 vb = speed_clamped ? Vec2::Zero() : Vec2(v_bar[p] + dt * x_bar[p]);
+    out.x[p] += xbp;
+    Vec2 vb = speed_clamped ? Vec2::Zero() : Vec2(vbp + dt * xbp);
     Mat2 Cb = C_bar[p];
     if (!J_clamped) {
       out.J[p] += J_bar[p] * (1 + dt * Cn.trace());

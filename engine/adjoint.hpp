@@ -38,9 +38,14 @@ struct TransferAdjoint {
 // `before` is the state the forward transfer started from (with accel and pair_force set); the
 // grid is recomputed from it. x_bar ... J_bar are dL/d(state after). Where the forward clamped
 // (speed above max_speed, J at its bounds) the clamped quantity passes no gradient. Serial.
+// after_hook, if given, is called per particle with the forward's state after G2P (x', v') and
+// may rewrite that particle's incoming x_bar, v_bar first: this is where a later per-particle
+// kernel (the projection out of solids) puts its own adjoint without a second forward pass.
+using AfterHook = void (*)(void* ctx, size_t p, const Vec2& x_after, const Vec2& v_after, Vec2& x_bar, Vec2& v_bar);
 void kernel_transfer_adjoint(const StepInputs& in, const Grid& grid_shape, const World& before,
                              const std::vector<Vec2>& x_bar, const std::vector<Vec2>& v_bar,
-                             const std::vector<Mat2>& C_bar, const std::vector<double>& J_bar, TransferAdjoint& out);
+                             const std::vector<Mat2>& C_bar, const std::vector<double>& J_bar, TransferAdjoint& out,
+                             AfterHook after_hook = nullptr, void* hook_ctx = nullptr);
 
 // d phi / d d and d phi / d c of contact_potential.
 void contact_potential_grad(double d, double theta1, double c, double eps, double& dphi_dd, double& dphi_dc);

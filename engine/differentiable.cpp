@@ -3,20 +3,25 @@
 namespace crowdmpm {
 
 namespace {
+// A step's input state, and what its drive and traction produced (so that the backward pass
+// does not run them again).
 struct Stored {
-  std::vector<Vec2> x, v, heading;
+  std::vector<Vec2> x, v, heading;  // heading before the step (the drive's fallback)
   std::vector<Mat2> C;
   std::vector<double> J;
+  std::vector<Vec2> accel, force, heading_used;
 };
 
-Stored store(const World& w) { return Stored{w.x, w.v, w.heading, w.C, w.J}; }
+Stored store(const World& w) { return Stored{w.x, w.v, w.heading, w.C, w.J, {}, {}, {}}; }
 
 void restore(World& w, const Stored& s) {
   w.x = s.x;
   w.v = s.v;
-  w.heading = s.heading;
   w.C = s.C;
   w.J = s.J;
+  w.accel = s.accel;
+  w.pair_force = s.force;
+  w.heading = s.heading_used;
 }
 
 // Central-difference Jacobian of a pointwise map R^4 -> R^4 (the projection, the drive): these
@@ -46,6 +51,10 @@ ModelGradient WindowGradient::run(Simulation& sim, int steps, const PositionLoss
   for (int k = 0; k < steps; ++k) {
     states.push_back(store(sim.world()));
     sim.step();
+    // The drive and traction of this step are still in the world's arrays (agents fixed).
+    states.back().accel = sim.world().accel;
+    states.back().force = sim.world().pair_force;
+    states.back().heading_used = sim.world().heading;
     if (sim.world().size() != n || sim.world().id != ids)
       throw Error("an agent entered or left the world during the gradient window (step " + std::to_string(k + 1) +
                   "); gradients need a fixed set of agents");
@@ -71,32 +80,32 @@ ModelGradient WindowGradient::run(Simulation& sim, int steps, const PositionLoss
   for (int k = steps - 1; k >= 0; --k) {
     if (!loss_x[static_cast<size_t>(k) + 1].empty())
       for (size_t p = 0; p < n; ++p) xb[p] += loss_x[static_cast<size_t>(k) + 1][p];
-    // Recompute step k up to the projection.
+    // Step k's state with its stored drive and traction; neighbour lists are rebuilt, the
+    // transfer adjoint recomputes the grid.
     restore(w, states[static_cast<size_t>(k)]);
-    kernel_drive(in, w, pool);
     nb.build(w, pool);
-    kernel_traction(in, nb, w, pool);
-    World after = w;
-    kernel_p2g(in, after, grid, pool);
-    kernel_grid_update(in, grid, pool);
-    kernel_g2p(in, grid, after, pool);
-    // Projection adjoint (per particle, local Jacobian of (x, v) -> (x', v')).
-    for (size_t p = 0; p < n; ++p) {
-      Eigen::Vector4d at(after.x[p].x(), after.x[p].y(), after.v[p].x(), after.v[p].y());
+    // Transfer adjoint, with the projection's adjoint applied per particle at the state after
+    // G2P (a local Jacobian of (x, v) -> (x', v') where the projection acts; identity elsewhere).
+    struct HookCtx {
+      const StepInputs* in;
+      const Geometry* geo;
+      double clearance;
+    } ctx{&in, &sc.geo, P.wall_clearance};
+    auto hook = [](void* c, size_t, const Vec2& xa, const Vec2& va, Vec2& xbar, Vec2& vbar) {
+      const HookCtx& h = *static_cast<const HookCtx*>(c);
+      if (h.geo->sdf(xa) >= h.clearance + 1e-6) return;
       auto proj = [&](const Eigen::Vector4d& s4) {
         Vec2 x(s4[0], s4[1]), v(s4[2], s4[3]);
-        project_point(in, x, v);
+        project_point(*h.in, x, v);
         return Eigen::Vector4d(x.x(), x.y(), v.x(), v.y());
       };
-      if (sc.geo.sdf(after.x[p]) >= P.wall_clearance + 1e-6) continue;  // inactive: identity
-      Eigen::Matrix4d Jm = local_jacobian(proj, at);
-      Eigen::Vector4d g = Jm.transpose() * Eigen::Vector4d(xb[p].x(), xb[p].y(), vb[p].x(), vb[p].y());
-      xb[p] = Vec2(g[0], g[1]);
-      vb[p] = Vec2(g[2], g[3]);
-    }
-    // Transfer adjoint.
+      Eigen::Matrix4d Jm = local_jacobian(proj, Eigen::Vector4d(xa.x(), xa.y(), va.x(), va.y()));
+      Eigen::Vector4d g = Jm.transpose() * Eigen::Vector4d(xbar.x(), xbar.y(), vbar.x(), vbar.y());
+      xbar = Vec2(g[0], g[1]);
+      vbar = Vec2(g[2], g[3]);
+    };
     xadj.reset(n);
-    kernel_transfer_adjoint(in, grid, w, xb, vb, Cb, Jb, xadj);
+    kernel_transfer_adjoint(in, grid, w, xb, vb, Cb, Jb, xadj, hook, &ctx);
     out.E += xadj.E;
     out.gamma += xadj.gamma;
     out.tension_scale += xadj.tension_scale;
@@ -110,16 +119,32 @@ ModelGradient WindowGradient::run(Simulation& sim, int steps, const PositionLoss
       const Behaviour& beh = behaviours[static_cast<size_t>(w.behaviour[p])];
       const Vec2 hb = tadj.heading[p];
       const Vec2 ab = xadj.accel[p];
-      auto drive = [&](const Eigen::Vector4d& s4) {
+      // Acceleration and heading as functions of x (local central differences: the navigation
+      // field and the behaviours are pointwise); the acceleration's v-dependence is exact.
+      auto drive_x = [&](const Vec2& x) {
         Vec2 a, h;
-        drive_point(in, beh, w.group[p], Vec2(s4[0], s4[1]), Vec2(s4[2], s4[3]), w.v0[p],
-                    states[static_cast<size_t>(k)].heading[p], a, h);
-        return Eigen::Vector4d(a.x(), a.y(), h.x(), h.y());
+        drive_point(in, beh, w.group[p], x, w.v[p], w.v0[p], states[static_cast<size_t>(k)].heading[p], a, h);
+        return std::make_pair(a, h);
       };
-      Eigen::Matrix4d Jm = local_jacobian(drive, Eigen::Vector4d(w.x[p].x(), w.x[p].y(), w.v[p].x(), w.v[p].y()));
-      Eigen::Vector4d g = Jm.transpose() * Eigen::Vector4d(ab.x(), ab.y(), hb.x(), hb.y());
-      xb[p] = xadj.x[p] + tadj.x[p] + Vec2(g[0], g[1]);
-      vb[p] = xadj.v[p] + tadj.v[p] + Vec2(g[2], g[3]);
+      Vec2 gx = Vec2::Zero();
+      const double hx = 1e-7;
+      for (int c = 0; c < 2; ++c) {
+        Vec2 up = w.x[p], dn = w.x[p];
+        up[c] += hx;
+        dn[c] -= hx;
+        auto [au, hu] = drive_x(up);
+        auto [ad, hd] = drive_x(dn);
+        gx[c] = (ab.dot(au - ad) + hb.dot(hu - hd)) / (2 * hx);
+      }
+      Vec2 gv = Vec2::Zero();
+      if (beh.kind != Behaviour::Kind::None) gv -= ab / P.tau;  // a = (s v0 e - v) / tau
+      if (hb.squaredNorm() > 0 && desired_direction(in, beh, w.x[p]).squaredNorm() == 0 && w.v[p].squaredNorm() > 1e-8) {
+        // Heading = v / |v| when there is no desired direction.
+        const Vec2 u = w.v[p].normalized();
+        gv += (hb - hb.dot(u) * u) / w.v[p].norm();
+      }
+      xb[p] = xadj.x[p] + tadj.x[p] + gx;
+      vb[p] = xadj.v[p] + tadj.v[p] + gv;
       if (beh.kind != Behaviour::Kind::None) {
         // a_drive = (s v0 e - v) / tau with e the desired direction; body forces do not depend
         // on tau or on s = v0_scale.

@@ -1,9 +1,10 @@
 #pragma once
-// Reverse-mode gradients of a loss over a window of steps (DESIGN.md section 4): the forward
-// pass stores each step's particle state (x, v, C, J, heading: 88 bytes per agent per step),
-// the backward pass recomputes the drive, neighbour lists, traction and grid of each step and
-// runs the kernels' adjoints in reverse order. Covers the crowd and fluid materials, with the
-// agent set fixed during the window (an exit or a source inside it is an error).
+// Reverse-mode gradients of a loss over a window of steps (DESIGN.md section 4). The forward
+// pass stores each step's particle state (x, v, C, J, heading) and what its drive and traction
+// produced (accelerations, pair forces, headings used): 136 bytes per agent per step. The
+// backward pass rebuilds each step's neighbour lists and grid and runs the kernels' adjoints in
+// reverse order. Covers the crowd and fluid materials with the agent set fixed during the
+// window (an exit or a source inside it is an error).
 #include <functional>
 #include <vector>
 
@@ -25,7 +26,7 @@ class WindowGradient {
  public:
   // Runs `steps` steps of `sim` forward (it advances), recording states, then the backward pass.
   ModelGradient run(Simulation& sim, int steps, const PositionLossGrad& loss_grad);
-  size_t stored_bytes_per_agent_step() const { return 2 * sizeof(Vec2) + sizeof(Mat2) + sizeof(double) + sizeof(Vec2); }
+  size_t stored_bytes_per_agent_step() const { return 6 * sizeof(Vec2) + sizeof(Mat2) + sizeof(double); }
 };
 
 }  // namespace crowdmpm
