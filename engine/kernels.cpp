@@ -181,39 +181,30 @@ void kernel_traction(const StepInputs& in, const NeighbourGrid& nb, World& w, Th
       if (active) {
         const Vec2 xp = w.x[p], vp = w.v[p], hp = w.heading[p];
         const double cp = w.comfort[p];
-        const int c = nb.cell[p], ci = c % nb.nx, cj = c / nb.nx;
-        for (int dj = -nb.span; dj <= nb.span; ++dj)
-          for (int di = -nb.span; di <= nb.span; ++di) {
-            int i = ci + di, j = cj + dj;
-            if (i < 0 || j < 0 || i >= nb.nx || j >= nb.ny) continue;
-            int k = j * nb.nx + i;
-            for (int s = nb.start[k]; s < nb.start[k + 1]; ++s) {
-              size_t q = static_cast<size_t>(nb.order[s]);
-              if (q == p) continue;
-              Vec2 r = w.x[q] - xp;
-              double d = r.norm();
-              double theta1 = w.radius[p] + w.radius[q];
-              if (d >= theta1 + cp) continue;
-              if (d < 1e-9) {
-                // Coincident centres: separate them along x, the lower id to the left, so that
-                // two agents placed on the same spot do not stay fused.
-                r = Vec2(w.id[q] > w.id[p] ? 1e-9 : -1e-9, 0);
-                d = 1e-9;
-              }
-              Vec2 n = r / d, np(-n.y(), n.x());
-              Vec2 dv = w.v[q] - vp;
-              inputs[0] = cp;
-              inputs[1] = d;
-              inputs[2] = r.dot(hp);
-              inputs[3] = r.dot(Vec2(-hp.y(), hp.x()));
-              inputs[4] = -dv.dot(n);
-              inputs[5] = dv.dot(np);
-              double K = net.eval(inputs);
-              double phi = contact_potential(d, theta1, cp, eps);
-              force -= K * phi * n;
-              virial += K * phi * d;
-            }
+        nb.for_each_candidate(p, [&](size_t q) {
+          Vec2 r = w.x[q] - xp;
+          double d = r.norm();
+          double theta1 = w.radius[p] + w.radius[q];
+          if (d >= theta1 + cp) return;
+          if (d < 1e-9) {
+            // Coincident centres: separate them along x, the lower id to the left, so that
+            // two agents placed on the same spot do not stay fused.
+            r = Vec2(w.id[q] > w.id[p] ? 1e-9 : -1e-9, 0);
+            d = 1e-9;
           }
+          Vec2 n = r / d, np(-n.y(), n.x());
+          Vec2 dv = w.v[q] - vp;
+          inputs[0] = cp;
+          inputs[1] = d;
+          inputs[2] = r.dot(hp);
+          inputs[3] = r.dot(Vec2(-hp.y(), hp.x()));
+          inputs[4] = -dv.dot(n);
+          inputs[5] = dv.dot(np);
+          double K = net.eval(inputs);
+          double phi = contact_potential(d, theta1, cp, eps);
+          force -= K * phi * n;
+          virial += K * phi * d;
+        });
       }
       w.pair_force[p] = force;
       w.pair_virial[p] = virial;

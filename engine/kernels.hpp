@@ -68,6 +68,23 @@ struct NeighbourGrid {
   int nx = 0, ny = 0;
   std::vector<int> start, order, cell, cursor;
   void init(const Geometry& geo, double reach, double min_cell = 0);
+  // Calls f(q) for every other particle q in the cells within `span` of p's cell, always in the
+  // same order (cells row by row, particles by index): the traction, its adjoint and the
+  // statistics share this one loop.
+  template <class F>
+  void for_each_candidate(size_t p, F&& f) const {
+    const int c0 = cell[p], ci = c0 % nx, cj = c0 / nx;
+    for (int dj = -span; dj <= span; ++dj)
+      for (int di = -span; di <= span; ++di) {
+        const int i = ci + di, j = cj + dj;
+        if (i < 0 || j < 0 || i >= nx || j >= ny) continue;
+        const int k = j * nx + i;
+        for (int s = start[static_cast<size_t>(k)]; s < start[static_cast<size_t>(k) + 1]; ++s) {
+          const size_t q = static_cast<size_t>(order[static_cast<size_t>(s)]);
+          if (q != p) f(q);
+        }
+      }
+  }
   void build(const World& w, ThreadPool& pool);
 };
 

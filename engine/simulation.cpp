@@ -381,19 +381,10 @@ PairStats Simulation::pair_stats() {
   const NeighbourGrid& nb = neighbours_;
   const World& w = world_;
   for (size_t p = 0; p < w.size(); ++p) {
-    const int c = nb.cell[p], ci = c % nb.nx, cj = c / nb.nx;
-    for (int dj = -nb.span; dj <= nb.span; ++dj)
-      for (int di = -nb.span; di <= nb.span; ++di) {
-        int i = ci + di, j = cj + dj;
-        if (i < 0 || j < 0 || i >= nb.nx || j >= nb.ny) continue;
-        int k = j * nb.nx + i;
-        for (int s = nb.start[k]; s < nb.start[k + 1]; ++s) {
-          size_t q = static_cast<size_t>(nb.order[s]);
-          if (q == p) continue;
-          ++st.candidates;
-          if ((w.x[q] - w.x[p]).norm() < w.radius[p] + w.radius[q] + w.comfort[p]) ++st.pairs;
-        }
-      }
+    nb.for_each_candidate(p, [&](size_t q) {
+      ++st.candidates;
+      if ((w.x[q] - w.x[p]).norm() < w.radius[p] + w.radius[q] + w.comfort[p]) ++st.pairs;
+    });
   }
   return st;
 }
