@@ -417,81 +417,10 @@ TEST_CASE("12-step window gradient matches central differences for every paramet
   CHECK(window_gradient_error(12) < 1e-5);
 }
 
-TEST_CASE("two grid transfers with a velocity-dependent drive compose", "[gradients]") {
-  Geometry geo;
-  geo.lo = Vec2(0, 0);
-  geo.hi = Vec2(6, 6);
-  Model model = Model::default_model();
-  model.set("tension_scale", 0.4);
-  model.set("max_speed", 10);
-  Grid grid;
-  grid.init(geo, 0.5);
-  World base;
-  Rng rng(21);
-  for (int k = 0; k < 12; ++k) {
-    AgentDef a;
-    a.position = Vec2(2.0 + 0.9 * rng.uniform(), 2.2 + 1.6 * rng.uniform());
-    a.velocity = Vec2(1.0 + rng.uniform(), rng.uniform() - 0.5);
-    base.add(a);
-  }
-  const size_t n = base.size();
-  std::vector<NavField> navs;
-  std::vector<Behaviour> behaviours(1);
-  std::vector<BodyForce> forces;
-  ThreadPool pool(1);
-  StepInputs in{model, geo, navs, behaviours, forces, 0.01};
-  auto transfer = [&](World& w) {
-    for (size_t p = 0; p < w.size(); ++p) w.accel[p] = -w.v[p] / 0.5;  // a drive towards rest
-    kernel_p2g(in, w, grid, pool);
-    kernel_grid_update(in, grid, pool);
-    kernel_g2p(in, grid, w, pool);
-  };
-  auto loss = [&](World w) {
-    transfer(w);
-    transfer(w);
-    double L = 0;
-    for (size_t p = 0; p < n; ++p) L += (0.5 + 0.1 * p) * w.x[p].x() + (0.3 - 0.07 * p) * w.x[p].y();
-    return L;
-  };
-  // Backward: second transfer from the state after the first, then the first.
-  World mid = base;
-  transfer(mid);
-  for (size_t p = 0; p < n; ++p) {
-    base.accel[p] = -base.v[p] / 0.5;
-    mid.accel[p] = -mid.v[p] / 0.5;
-  }
-  std::vector<Vec2> xb(n), vb(n, Vec2::Zero());
-  for (size_t p = 0; p < n; ++p) xb[p] = Vec2(0.5 + 0.1 * p, 0.3 - 0.07 * p);
-  std::vector<Mat2> Cb(n, Mat2::Zero());
-  std::vector<double> Jb(n, 0);
-  TransferAdjoint a2, a1;
-  a2.reset(n);
-  kernel_transfer_adjoint(in, grid, mid, xb, vb, Cb, Jb, a2);
-  for (size_t p = 0; p < n; ++p) a2.v[p] += -a2.accel[p] / 0.5;
-  a1.reset(n);
-  kernel_transfer_adjoint(in, grid, base, a2.x, a2.v, a2.C, a2.J, a1);
-  for (size_t p = 0; p < n; ++p) a1.v[p] += -a1.accel[p] / 0.5;
-  double worst = 0;
-  const double h = 1e-5;
-  for (size_t p = 0; p < n; ++p)
-    for (int a = 0; a < 2; ++a) {
-      World up = base, down = base;
-      up.v[p][a] += h;
-      down.v[p][a] -= h;
-      double fd = (loss(up) - loss(down)) / (2 * h);
-      worst = std::max(worst, rel_err(a1.v[p][a], fd));
-      up = base;
-      down = base;
-      up.x[p][a] += h;
-      down.x[p][a] -= h;
-      fd = (loss(up) - loss(down)) / (2 * h);
-      worst = std::max(worst, rel_err(a1.x[p][a], fd));
-    }
-  std::printf("gradients two transfers: worst relative error %.2e\n", worst);
-  CHECK(worst < 1e-5);
-}
-
-TEST_CASE("two steps with pair traction compose", "[gradients][debug]") {
+// The kernel adjoints chained by hand over two steps (a drive towards rest, pair traction, grid
+// transfer), with a loss whose weights differ per agent: uniform weights would hide errors in
+// the internal forces, which cancel under a common translation.
+TEST_CASE("two steps with pair traction compose by hand", "[gradients]") {
   Geometry geo;
   geo.lo = Vec2(0, 0);
   geo.hi = Vec2(6, 6);
@@ -581,6 +510,6 @@ TEST_CASE("two steps with pair traction compose", "[gradients][debug]") {
       fd = (loss(up) - loss(down)) / (2 * h);
       worst = std::max(worst, rel_err(a1.x[p][a], fd));
     }
-  std::printf("gradients two steps with traction: worst relative error %.2e\n", worst);
+  std::printf("gradients two steps by hand: worst relative error %.2e\n", worst);
   CHECK(worst < 1e-5);
 }
