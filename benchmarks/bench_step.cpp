@@ -62,7 +62,7 @@ int main(int argc, char** argv) {
   if (!scenario_file.empty()) {
     try {
       scenario = std::make_unique<ScenarioDef>(ScenarioDef::load(scenario_file));
-      owned = std::make_unique<Simulation>(*scenario, scenario->model ? *scenario->model : Model::default_model(), threads);
+      owned = std::make_unique<Simulation>(*scenario, scenario->model_or_default(), threads);
     } catch (const Error& e) {
       std::fprintf(stderr, "bench_step: %s\n", e.what());
       return 1;

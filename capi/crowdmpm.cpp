@@ -154,7 +154,7 @@ cmpm_Status cmpm_CreateWorld(const cmpm_WorldDef* def, cmpm_WorldId* out_world) 
     ScenarioDef s = def->scenario_path ? ScenarioDef::load(def->scenario_path) : ScenarioDef::parse_text(def->scenario_json);
     Model m = def->model_path ? Model::load(def->model_path)
               : def->model_json ? Model::parse(JsonReader(parse_json_text(def->model_json, "<model>"), ""), "<model>")
-              : s.model ? *s.model : Model::default_model();
+              : s.model_or_default();
     auto sim = std::make_unique<Simulation>(s, m, def->threads);
     std::lock_guard<std::mutex> lock(g_registry_mutex);
     size_t i = 0;

@@ -159,7 +159,7 @@ int cmd_simulate(const Args& a) {
   if (a.out.empty()) usage_error("simulate needs --out DIR");
   ScenarioDef s = ScenarioDef::load(a.positional[0]);
   if (a.duration > 0) s.duration = a.duration;
-  Model m = !a.model.empty() ? Model::load(a.model) : s.model ? *s.model : Model::default_model();
+  Model m = !a.model.empty() ? Model::load(a.model) : s.model_or_default();
   RunOptions opt;
   opt.out_dir = a.out;
   opt.threads = a.threads;
@@ -182,7 +182,7 @@ int cmd_predict(const Args& a) {
   if (a.scenario.empty() || a.trajectories.empty()) usage_error("predict needs --scenario and --trajectories");
   if (!a.positional.empty()) usage_error("predict takes no positional arguments (got '" + a.positional[0] + "')");
   ScenarioDef s = ScenarioDef::load(a.scenario);
-  Model m = !a.model.empty() ? Model::load(a.model) : s.model ? *s.model : Model::default_model();
+  Model m = !a.model.empty() ? Model::load(a.model) : s.model_or_default();
   TrajectorySet t = TrajectorySet::read(a.trajectories);
   PredictOptions o;
   o.observe = a.observe;
@@ -246,7 +246,7 @@ int cmd_validate(const Args& a) {
   if (a.help) { std::fputs(kValidateHelp, stdout); return 0; }
   if (a.positional.size() != 1) usage_error("validate needs exactly one SCENARIO file");
   ScenarioDef s = ScenarioDef::load(a.positional[0]);
-  Model m = !a.model.empty() ? Model::load(a.model) : s.model ? *s.model : Model::default_model();
+  Model m = !a.model.empty() ? Model::load(a.model) : s.model_or_default();
   Simulation sim(s, m, 1);
   std::printf("%s: valid. domain [%g, %g] x [%g, %g] m, cell %g m, dt %g s, duration %g s; %zu solids, %zu exits, "
               "%zu groups/sources, %zu agents placed; material %s\n",

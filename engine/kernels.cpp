@@ -172,7 +172,6 @@ void kernel_traction(const StepInputs& in, const NeighbourGrid& nb, World& w, Th
   const TractionNet& net = in.model.traction;
   const bool active = in.model.has_traction();
   const double eps = in.model.params.contact_epsilon;
-  const double area0 = 1.0 / in.model.params.rest_density;
   pool.parallel_for(w.size(), [&](size_t b, size_t e) {
     double inputs[TractionNet::kInputs];
     for (size_t p = b; p < e; ++p) {
@@ -208,9 +207,6 @@ void kernel_traction(const StepInputs& in, const NeighbourGrid& nb, World& w, Th
       }
       w.pair_force[p] = force;
       w.pair_virial[p] = virial;
-      Mat2 tau = kirchhoff_stress(in.model, w.F[p], w.J[p]);
-      double J = std::max(w.J[p], 1e-6);
-      w.pressure[p] = -0.5 * tau.trace() / J + virial / (4 * area0 * J);
     }
   });
 }
@@ -224,7 +220,7 @@ void kernel_traction(const StepInputs& in, const NeighbourGrid& nb, World& w, Th
 
 static inline Stencil stencil(const Grid& g, const Vec2& x) { return make_stencil(g.origin, g.dx, g.nx, g.ny, x); }
 
-void kernel_p2g(const StepInputs& in, const World& w, Grid& g, ThreadPool& pool) {
+void kernel_p2g(const StepInputs& in, World& w, Grid& g, ThreadPool& pool) {
   const size_t n = w.size();
   const double m = in.model.params.mass, vol0 = 1.0 / in.model.params.rest_density;
   const double dt = in.dt, inv_dx2 = 1.0 / (g.dx * g.dx);
@@ -238,8 +234,12 @@ void kernel_p2g(const StepInputs& in, const World& w, Grid& g, ThreadPool& pool)
       const Stencil& s = g.stencils[p] = stencil(g, w.x[p]);
       g.base[p] = g.node(s.bx, s.by);
       g.affine[p] = m * w.C[p];
-      g.stress[p] = -dt * vol0 * 4 * inv_dx2 * kirchhoff_stress(in.model, w.F[p], w.J[p]);
+      const Mat2 tau = kirchhoff_stress(in.model, w.F[p], w.J[p]);
+      g.stress[p] = -dt * vol0 * 4 * inv_dx2 * tau;
       g.momentum[p] = m * w.v[p];
+      // Reported pressure: the continuum part plus the pair virial of kernel_traction.
+      const double J = std::max(w.J[p], 1e-6);
+      w.pressure[p] = -0.5 * tau.trace() / J + w.pair_virial[p] / (4 * vol0 * J);
     }
   });
   counting_sort(g.base, n, g.bin_start, g.order, g.cursor);

@@ -113,7 +113,8 @@ void drive_point(const StepInputs& in, const Behaviour& beh, int group, const Ve
 void project_point(const StepInputs& in, Vec2& x, Vec2& v);
 void kernel_drive(const StepInputs& in, World& w, ThreadPool& pool);
 void kernel_traction(const StepInputs& in, const NeighbourGrid& nb, World& w, ThreadPool& pool);
-void kernel_p2g(const StepInputs& in, const World& w, Grid& g, ThreadPool& pool);
+// Also writes each particle's reported pressure (it has the stress at hand).
+void kernel_p2g(const StepInputs& in, World& w, Grid& g, ThreadPool& pool);
 void kernel_grid_update(const StepInputs& in, Grid& g, ThreadPool& pool);
 void kernel_g2p(const StepInputs& in, const Grid& g, World& w, ThreadPool& pool);
 void kernel_project(const StepInputs& in, World& w, ThreadPool& pool);

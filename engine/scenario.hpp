@@ -78,6 +78,8 @@ struct ScenarioDef {
   static ScenarioDef parse_text(const std::string& text, const std::string& base_dir = ".");
   static ScenarioDef load(const std::string& path);
   int steps_per_frame() const;
+  // The scenario's own model, or the built-in default when it names none.
+  Model model_or_default() const { return model ? *model : Model::default_model(); }
 };
 
 }  // namespace crowdmpm

@@ -334,6 +334,7 @@ void Simulation::prepare_derived() {
   kernel_drive(in, world_, pool_);
   neighbours_.build(world_, pool_);
   kernel_traction(in, neighbours_, world_, pool_);
+  kernel_p2g(in, world_, grid_, pool_);  // reported pressure of the initial state
 }
 
 const char* const StepProfile::kNames[StepProfile::kParts] = {"drive", "neighbours", "traction", "p2g", "grid_update",

@@ -87,8 +87,8 @@ class Simulation {
   void spawn_sources();
   void retire_at_exits();
   void check_finite();
-  void prepare_derived();
-  void init_neighbours(double reach);  // drive + traction on the current state, so pressure is defined
+  void prepare_derived();  // drive, traction and P2G on the current state, so pressure is defined
+  void init_neighbours(double reach);
   AgentDef agent_template(const GroupDef& g, int group_index) const;
 
   ScenarioDef scenario_;

@@ -37,7 +37,7 @@ class World {
   std::vector<Vec2> heading;     // unit desired direction (or motion direction)
   std::vector<Vec2> pair_force;  // pair traction on the particle
   std::vector<double> pair_virial;  // sum over neighbours of f_pq . (x_p - x_q)
-  std::vector<double> pressure;  // reported pressure (continuum + pair virial)
+  std::vector<double> pressure;  // reported pressure (continuum + pair virial), written by P2G
 
   size_t size() const { return id.size(); }
   void reserve(size_t n);

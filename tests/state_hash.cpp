@@ -12,7 +12,7 @@ int main(int argc, char** argv) {
   }
   try {
     crowdmpm::ScenarioDef s = crowdmpm::ScenarioDef::load(argv[1]);
-    crowdmpm::Simulation sim(s, s.model ? *s.model : crowdmpm::Model::default_model(), argc > 3 ? std::atoi(argv[3]) : 1);
+    crowdmpm::Simulation sim(s, s.model_or_default(), argc > 3 ? std::atoi(argv[3]) : 1);
     sim.run_steps(std::atol(argv[2]));
     std::printf("%016llx\n", static_cast<unsigned long long>(sim.world().state_hash()));
   } catch (const crowdmpm::Error& e) {

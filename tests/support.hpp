@@ -17,7 +17,7 @@ inline std::string shared_data_dir() {
   return std::filesystem::exists(p) ? p : std::string();
 }
 
-inline Model model_of(const ScenarioDef& s) { return s.model ? *s.model : Model::default_model(); }
+inline Model model_of(const ScenarioDef& s) { return s.model_or_default(); }
 
 // Runs a scenario for `seconds` (or its duration), calling on_frame after every output frame.
 inline void run_for(Simulation& sim, double seconds, const std::function<void(const Simulation&)>& on_frame) {

@@ -119,6 +119,9 @@ double lattice_pressure(const Model& m, double d) {
   nb.init(geo, 1.0);  // reach >= 2 r + c
   nb.build(w, pool);
   kernel_traction(in, nb, w, pool);
+  Grid grid;
+  grid.init(geo, 0.5);
+  kernel_p2g(in, w, grid, pool);  // writes the reported pressure
   return w.pressure[w.size() / 2];
 }
 

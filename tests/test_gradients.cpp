@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <functional>
 
 #include "engine/adjoint.hpp"
 #include "engine/differentiable.hpp"
@@ -199,6 +200,22 @@ TEST_CASE("pair traction adjoint matches central differences", "[gradients]") {
   CHECK(worst < 1e-5);
 }
 
+namespace {
+// A dozen agents in a 0.9 m x 1.6 m patch moving in +x (towards the transfer test's obstacle);
+// `extra` may randomise more of each agent's state, drawn right after it is placed.
+World moving_cluster(Rng& rng, const std::function<void(World&)>& extra = nullptr) {
+  World w;
+  for (int k = 0; k < 12; ++k) {
+    AgentDef a;
+    a.position = Vec2(2.0 + 0.9 * rng.uniform(), 2.2 + 1.6 * rng.uniform());
+    a.velocity = Vec2(1.0 + rng.uniform(), rng.uniform() - 0.5);
+    w.add(a);
+    if (extra) extra(w);
+  }
+  return w;
+}
+}  // namespace
+
 TEST_CASE("grid transfer adjoint (P2G, grid update, G2P) matches central differences", "[gradients]") {
   Geometry geo;
   geo.lo = Vec2(0, 0);
@@ -210,18 +227,13 @@ TEST_CASE("grid transfer adjoint (P2G, grid update, G2P) matches central differe
   model.set("wall_friction", 0.2);
   Grid grid;
   grid.init(geo, 0.5);
-  World base;
   Rng rng(21);
-  for (int k = 0; k < 12; ++k) {
-    AgentDef a;
-    a.position = Vec2(2.0 + 0.9 * rng.uniform(), 2.2 + 1.6 * rng.uniform());
-    a.velocity = Vec2(1.0 + rng.uniform(), rng.uniform() - 0.5);  // towards the obstacle
-    base.add(a);
-    base.C.back() << rng.uniform() - 0.5, rng.uniform() - 0.5, rng.uniform() - 0.5, rng.uniform() - 0.5;
-    base.J.back() = 0.7 + 0.5 * rng.uniform();  // both sides of 1
-    base.accel.back() = Vec2(rng.uniform() - 0.5, rng.uniform() - 0.5);
-    base.pair_force.back() = Vec2(rng.uniform() - 0.5, rng.uniform() - 0.5);
-  }
+  World base = moving_cluster(rng, [&](World& w) {
+    w.C.back() << rng.uniform() - 0.5, rng.uniform() - 0.5, rng.uniform() - 0.5, rng.uniform() - 0.5;
+    w.J.back() = 0.7 + 0.5 * rng.uniform();  // both sides of 1
+    w.accel.back() = Vec2(rng.uniform() - 0.5, rng.uniform() - 0.5);
+    w.pair_force.back() = Vec2(rng.uniform() - 0.5, rng.uniform() - 0.5);
+  });
   const size_t n = base.size();
   std::vector<Vec2> wx(n), wv(n);
   std::vector<Mat2> wC(n);
@@ -429,14 +441,8 @@ TEST_CASE("two steps with pair traction compose by hand", "[gradients]") {
   model.set("max_speed", 10);
   Grid grid;
   grid.init(geo, 0.5);
-  World base;
   Rng rng(21);
-  for (int k = 0; k < 12; ++k) {
-    AgentDef a;
-    a.position = Vec2(2.0 + 0.9 * rng.uniform(), 2.2 + 1.6 * rng.uniform());
-    a.velocity = Vec2(1.0 + rng.uniform(), rng.uniform() - 0.5);
-    base.add(a);
-  }
+  World base = moving_cluster(rng);
   const size_t n = base.size();
   std::vector<NavField> navs;
   std::vector<Behaviour> behaviours(1);
