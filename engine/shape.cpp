@@ -114,13 +114,6 @@ double Shape::area() const {
   return 0;
 }
 
-Vec2 Shape::centroid() const {
-  if (kind == Kind::Circle) return center;
-  Vec2 c = Vec2::Zero();
-  for (const auto& q : points) c += q;
-  return c / static_cast<double>(std::max<size_t>(1, points.size()));
-}
-
 static double cross(const Vec2& a, const Vec2& b) { return a.x() * b.y() - a.y() * b.x(); }
 
 static bool segments_cross(const Vec2& a, const Vec2& b, const Vec2& c, const Vec2& d) {

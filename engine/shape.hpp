@@ -25,7 +25,6 @@ struct Shape {
   double sdf(const Vec2& p) const;
   bool contains(const Vec2& p) const;  // strictly inside (bounding box, then even-odd test)
   double area() const;
-  Vec2 centroid() const;
 };
 
 // A region is {"rect": [xmin, ymin, xmax, ymax]} | {"polygon": [[x, y], ...]} |

@@ -31,7 +31,6 @@ class TractionNet {
   std::vector<DenseLayer> layers;
   Activation output = Activation::Softplus;
 
-  bool is_constant() const { return layers.empty(); }
   double eval(const double* inputs) const;
   size_t parameter_count() const;
 
