@@ -114,7 +114,7 @@ int main(int argc, char** argv) {
     reset();
     WindowGradient wg;
     t0 = std::chrono::steady_clock::now();
-    ModelGradient g = wg.run(sim, static_cast<int>(steps), [](int, const World& w, std::vector<Vec2>& d) {
+    ModelGradient g = wg.run(sim, static_cast<int>(steps), [](int, const World& w, std::vector<Vec2>& d, std::vector<Vec2>&) {
       for (size_t p = 0; p < w.size(); ++p) d[p] = w.x[p];  // gradient of 0.5 |x|^2
       return true;
     });

@@ -13,6 +13,7 @@
 #include "engine/output.hpp"
 #include "engine/predict.hpp"
 #include "engine/render.hpp"
+#include "engine/train.hpp"
 
 using namespace crowdmpm;
 
@@ -27,11 +28,16 @@ const char* kUsage =
     "                      and metrics.json to DIR\n"
     "  validate SCENARIO [--model MODEL]\n"
     "                      check a scenario (and model) and print what it contains\n"
-    "  predict --scenario S --trajectories T [--model M] [--observe S] [--horizon S]\n"
-    "          [--stride S] [--windows N] [--threads N] [--out DIR]\n"
-    "                      roll recorded states forward and report ADE/FDE against the\n"
-    "                      recording, for constant velocity and the crowd model\n"
-    "                      check a scenario (and model) and print what it contains\n"
+    "  predict --scenario S --trajectories T [--model M]... [--observe S] [--horizon S]\n"
+    "          [--stride S] [--windows N] [--desired-speed observed|scenario]\n"
+    "          [--threads N] [--out DIR]\n"
+    "                      roll recorded states forward and report ADE/FDE and grid\n"
+    "                      velocity errors against the recording, for constant velocity,\n"
+    "                      the untrained default model and every model given\n"
+    "  train --scenario S --trajectories T [T...] [--scenario S2 --trajectories ...]\n"
+    "        --out MODEL.json [--model START] [options]\n"
+    "                      learn the material from recordings by gradient descent through\n"
+    "                      the simulator; writes a model JSON the simulator loads\n"
     "  help [COMMAND]      show help\n"
     "\n"
     "Run 'crowdmpm <command> --help' for the options of one command.\n";
@@ -60,20 +66,62 @@ const char* kPredictHelp =
     "Takes the recorded state (positions; velocities over the last 0.5 s) at window starts\n"
     "every --stride seconds after the first --observe seconds, rolls it forward --horizon\n"
     "seconds with constant velocity and with the crowd model in the scenario's venue, and\n"
-    "prints average and final displacement errors (ADE/FDE, m) at every whole second.\n"
+    "prints average and final displacement errors (ADE/FDE, m) at every whole second, and the\n"
+    "RMS error of the grid velocity field (m/s) at the horizon.\n"
     "People are compared only while both the recording and the prediction have them.\n"
     "\n"
     "options:\n"
     "  --scenario S       crowdmpm-scenario JSON with the recording's geometry (its first\n"
     "                     group's behaviour is given to the observed people)\n"
     "  --trajectories T   PeTrack text file (id frame x y [z], '# framerate:' header)\n"
-    "  --model M          crowdmpm-model JSON (default: the scenario's, else built-in)\n"
+    "  --model M          crowdmpm-model JSON to evaluate; repeat for several (the untrained\n"
+    "                     default, the scenario's model or the built-in one, is always shown)\n"
+    "  --desired-speed observed|scenario\n"
+    "                     desired speed of the observed people (default observed: each\n"
+    "                     person's walking speed over the last second, times v0_scale)\n"
     "  --observe S        seconds of recording before the first window (default 2)\n"
     "  --horizon S        seconds to predict (default 4)\n"
     "  --stride S         seconds between window starts (default: the horizon)\n"
     "  --windows N        at most N windows (default all)\n"
     "  --threads N        worker threads (default 1)\n"
     "  --out DIR          write prediction.json and prediction.png (first window's paths)\n";
+
+const char* kTrainHelp =
+    "usage: crowdmpm train --scenario S --trajectories T [T...] [--scenario S2 --trajectories ...]\n"
+    "                      --out MODEL.json [options]\n"
+    "\n"
+    "Cuts windows of --window seconds every --stride seconds from every recording; each starts\n"
+    "from the recorded state (positions, velocities over the last 0.5 s, walking speeds over the\n"
+    "last 1 s) in its scenario's venue, is simulated, and scored by the mean squared distance\n"
+    "between simulated and recorded positions of the people seen at its start (people are\n"
+    "masked once the recording loses them). Gradients of that loss through the simulator move\n"
+    "the parameters with Adam (gradient-norm clipping); the last --validation share of every\n"
+    "recording is held out, scored every --eval-every iterations, and training stops after\n"
+    "--patience scores without improvement. The model with the best validation loss is written.\n"
+    "Each --scenario applies to the --trajectories files after it.\n"
+    "\n"
+    "options:\n"
+    "  --out MODEL.json   where to write the learned model; required\n"
+    "  --model START      starting model (default: the first scenario's, else built-in);\n"
+    "                     its material (crowd or fluid) is the one learned\n"
+    "  --params LIST      comma-separated scalars to learn (default all with gradients:\n"
+    "                     E,gamma,tension_scale,tau,v0_scale,comfort_distance,alignment_time)\n"
+    "  --no-network       keep the traction network fixed\n"
+    "  --window S         seconds per window (default 2)\n"
+    "  --stride S         seconds between windows (default 1)\n"
+    "  --iterations N     Adam steps at most (default 120)\n"
+    "  --batch N          windows per step (default 4)\n"
+    "  --lr X             learning rate, in log units for positive scalars (default 0.03)\n"
+    "  --clip X           gradient-norm clipping (default 1; 0 off)\n"
+    "  --validation F     held-out share of every recording (default 0.25)\n"
+    "  --eval-every N     iterations between validation passes (default 5)\n"
+    "  --patience N       validation passes without improvement before stopping (default 6)\n"
+    "  --seed N           minibatch sampling seed (default 1)\n"
+    "  --desired-speed observed|scenario\n"
+    "                     desired speed of the recorded people: their own walking speed\n"
+    "                     (default) or the scenario group's, times v0_scale\n"
+    "  --threads N        worker threads of the forward passes (default 1)\n"
+    "  --quiet            no progress lines\n";
 
 const char* kValidateHelp =
     "usage: crowdmpm validate SCENARIO [--model MODEL]\n"
@@ -83,13 +131,35 @@ const char* kValidateHelp =
 
 struct Args {
   std::vector<std::string> positional;
-  std::string out, model, scenario, trajectories;
+  std::string out, model, scenario, trajectories;  // the first --model, --scenario, --trajectories
+  std::vector<std::string> models;
+  std::vector<std::pair<std::string, std::vector<std::string>>> datasets;  // scenario, its trajectories
   double observe = 2, horizon = 4, stride = -1;
   int windows = 0;
   int threads = 1;
   double duration = -1;
   bool quiet = false, help = false;
+  std::string desired_speed = "observed";
+  TrainOptions train;
+  bool stride_given = false;
 };
+
+[[noreturn]] void usage_error(const std::string& msg);
+
+double parse_double(const std::string& name, const std::string& v, double lo, double hi, const char* what) {
+  char* end = nullptr;
+  double d = std::strtod(v.c_str(), &end);
+  if (v.empty() || *end || !(d >= lo && d <= hi)) usage_error(name + " must be " + what + ", got '" + v + "'");
+  return d;
+}
+
+long parse_long(const std::string& name, const std::string& v, long lo, long hi) {
+  char* end = nullptr;
+  long n = std::strtol(v.c_str(), &end, 10);
+  if (v.empty() || *end || n < lo || n > hi)
+    usage_error(name + " must be a whole number in [" + std::to_string(lo) + ", " + std::to_string(hi) + "], got '" + v + "'");
+  return n;
+}
 
 [[noreturn]] void usage_error(const std::string& msg) {
   std::fprintf(stderr, "crowdmpm: %s\n(run 'crowdmpm help' for usage)\n", msg.c_str());
@@ -106,17 +176,47 @@ Args parse_args(int argc, char** argv, int first) {
     };
     if (s == "--help" || s == "-h") a.help = true;
     else if (s == "--out") a.out = value("--out");
-    else if (s == "--model") a.model = value("--model");
-    else if (s == "--quiet") a.quiet = true;
-    else if (s == "--scenario") a.scenario = value("--scenario");
-    else if (s == "--trajectories") a.trajectories = value("--trajectories");
-    else if (s == "--observe" || s == "--horizon" || s == "--stride") {
-      std::string v = value(s.c_str());
-      char* end = nullptr;
-      double d = std::strtod(v.c_str(), &end);
-      if (*end || !(d > 0) || d > 1e5) usage_error(s + " must be a number of seconds > 0, got '" + v + "'");
-      (s == "--observe" ? a.observe : s == "--horizon" ? a.horizon : a.stride) = d;
-    } else if (s == "--windows") {
+    else if (s == "--model") {
+      a.models.push_back(value("--model"));
+      a.model = a.models.front();
+    } else if (s == "--quiet") a.quiet = true;
+    else if (s == "--scenario") {
+      a.datasets.push_back({value("--scenario"), {}});
+      if (a.scenario.empty()) a.scenario = a.datasets.back().first;
+    } else if (s == "--trajectories") {
+      if (a.datasets.empty()) a.datasets.push_back({"", {}});  // reported as missing --scenario
+      a.datasets.back().second.push_back(value("--trajectories"));
+      while (i + 1 < argc && argv[i + 1][0] != '-') a.datasets.back().second.push_back(argv[++i]);
+      if (a.trajectories.empty()) a.trajectories = a.datasets.back().second.front();
+    } else if (s == "--observe" || s == "--horizon" || s == "--stride" || s == "--window") {
+      double d = parse_double(s, value(s.c_str()), 1e-3, 1e5, "a number of seconds > 0");
+      (s == "--observe" ? a.observe : s == "--horizon" ? a.horizon : s == "--window" ? a.train.window : a.stride) = d;
+      if (s == "--stride") a.stride_given = true;
+    } else if (s == "--desired-speed") {
+      a.desired_speed = value("--desired-speed");
+      if (a.desired_speed != "observed" && a.desired_speed != "scenario")
+        usage_error("--desired-speed must be 'observed' or 'scenario', got '" + a.desired_speed + "'");
+    } else if (s == "--params") {
+      std::string v = value("--params");
+      a.train.params.clear();
+      size_t b = 0;
+      while (b <= v.size()) {
+        size_t e = v.find(',', b);
+        if (e == std::string::npos) e = v.size();
+        if (e > b) a.train.params.push_back(v.substr(b, e - b));
+        b = e + 1;
+      }
+      if (a.train.params.empty()) usage_error("--params needs at least one parameter name");
+    } else if (s == "--no-network") a.train.learn_network = false;
+    else if (s == "--iterations") a.train.iterations = static_cast<int>(parse_long(s, value(s.c_str()), 1, 1000000));
+    else if (s == "--batch") a.train.batch = static_cast<int>(parse_long(s, value(s.c_str()), 1, 10000));
+    else if (s == "--eval-every") a.train.eval_every = static_cast<int>(parse_long(s, value(s.c_str()), 1, 1000000));
+    else if (s == "--patience") a.train.patience = static_cast<int>(parse_long(s, value(s.c_str()), 1, 1000000));
+    else if (s == "--seed") a.train.seed = static_cast<uint64_t>(parse_long(s, value(s.c_str()), 0, 1L << 62));
+    else if (s == "--lr") a.train.learning_rate = parse_double(s, value(s.c_str()), 1e-9, 10, "a number in (0, 10]");
+    else if (s == "--clip") a.train.clip_norm = parse_double(s, value(s.c_str()), 0, 1e12, "a number >= 0");
+    else if (s == "--validation") a.train.validation_fraction = parse_double(s, value(s.c_str()), 0.01, 0.9, "a fraction in [0.01, 0.9]");
+    else if (s == "--windows") {
       std::string v = value("--windows");
       char* end = nullptr;
       long n = std::strtol(v.c_str(), &end, 10);
@@ -177,12 +277,24 @@ int cmd_simulate(const Args& a) {
   return 0;
 }
 
+DesiredSpeed desired_speed_of(const Args& a) {
+  return a.desired_speed == "scenario" ? DesiredSpeed::Scenario : DesiredSpeed::Observed;
+}
+
+// A model's label in tables: its name and material.
+std::string model_label(const Model& m) {
+  return m.name.empty() ? std::string(material_name(m.material)) : m.name + " (" + material_name(m.material) + ")";
+}
+
 int cmd_predict(const Args& a) {
   if (a.help) { std::fputs(kPredictHelp, stdout); return 0; }
   if (a.scenario.empty() || a.trajectories.empty()) usage_error("predict needs --scenario and --trajectories");
+  if (a.datasets.size() > 1 || a.datasets[0].second.size() > 1) usage_error("predict takes one --scenario and one --trajectories file");
   if (!a.positional.empty()) usage_error("predict takes no positional arguments (got '" + a.positional[0] + "')");
   ScenarioDef s = ScenarioDef::load(a.scenario);
-  Model m = !a.model.empty() ? Model::load(a.model) : s.model_or_default();
+  std::vector<Model> models = {s.model_or_default()};
+  models[0].name = "untrained " + (models[0].name.empty() ? std::string("model") : models[0].name);
+  for (const auto& path : a.models) models.push_back(Model::load(path));
   TrajectorySet t = TrajectorySet::read(a.trajectories);
   PredictOptions o;
   o.observe = a.observe;
@@ -193,28 +305,31 @@ int cmd_predict(const Args& a) {
   if (o.observe + o.horizon > t.duration())
     usage_error("--observe + --horizon (" + format_number(o.observe + o.horizon) + " s) exceed the recording (" +
                 format_number(t.duration()) + " s)");
-  std::vector<PredictionReport> reports = {
-      evaluate_predictor("constant velocity", t, o, constant_velocity_predictor()),
-      evaluate_predictor(std::string("crowd model (") + material_name(m.material) + ")", t, o, simulation_predictor(s, m, a.threads))};
-  std::printf("%s: %zu people, %.1f s at %g fps; %ld windows of %g s\n", a.trajectories.c_str(), t.person_count(),
-              t.duration(), t.framerate, reports[0].windows, o.horizon);
-  std::printf("%-28s", "method");
+  const WindowOptions wo{a.threads, desired_speed_of(a), true};
+  Grid grid;
+  grid.init(s.geo, s.cell_size);
+  std::vector<PredictionReport> reports = {evaluate_predictor("constant velocity", t, o, constant_velocity_predictor(), &grid)};
+  for (const auto& m : models) reports.push_back(evaluate_predictor(model_label(m), t, o, simulation_predictor(s, m, wo), &grid));
+  std::printf("%s: %zu people, %.1f s at %g fps; %ld windows of %g s; desired speed %s\n", a.trajectories.c_str(),
+              t.person_count(), t.duration(), t.framerate, reports[0].windows, o.horizon, a.desired_speed.c_str());
+  std::printf("%-34s", "method");
   for (const auto& h : reports[0].horizons) std::printf("   ADE@%gs  FDE@%gs", h.horizon, h.horizon);
-  std::printf("\n");
+  std::printf("  gridV@%gs\n", reports[0].horizons.back().horizon);
   for (const auto& r : reports) {
-    std::printf("%-28s", r.method.c_str());
+    std::printf("%-34s", r.method.c_str());
     for (const auto& h : r.horizons) std::printf("  %7.3f  %7.3f", h.ade, h.fde);
-    std::printf("\n");
+    std::printf("  %8.3f\n", r.horizons.back().grid_velocity_rms);
   }
   if (!a.out.empty()) {
     std::filesystem::create_directories(a.out);
     json j = {{"scenario", a.scenario}, {"trajectories", a.trajectories}, {"observe_s", o.observe},
-              {"horizon_s", o.horizon}, {"stride_s", o.stride}, {"units", "metres"}, {"methods", json::array()}};
+              {"horizon_s", o.horizon}, {"stride_s", o.stride}, {"desired_speed", a.desired_speed},
+              {"units", "metres, m/s"}, {"methods", json::array()}};
     for (const auto& r : reports) j["methods"].push_back(report_to_json(r));
     std::ofstream(a.out + "/prediction.json") << j.dump(2) << "\n";
-    // Paths of the first window: recorded, constant velocity, model.
+    // Paths of the first window: recorded, constant velocity, the last model given.
     long f0 = t.frame_min() + std::lround(o.observe * t.framerate);
-    ObservedState st = observe_at(t, f0, o.velocity_window);
+    ObservedState st = observe_at(t, f0, o.velocity_window, o.speed_window);
     std::vector<double> times;
     for (long k = 1; k <= std::lround(o.horizon * t.framerate); ++k) times.push_back(static_cast<double>(k) / t.framerate);
     auto as_paths = [&](const std::vector<std::vector<Vec2>>& per_time) {
@@ -234,11 +349,68 @@ int cmd_predict(const Args& a) {
     }
     std::vector<PathSet> sets = {{"recorded", 60, 160, 60, as_paths(recorded)},
                                  {"const. velocity", 200, 120, 40, as_paths(constant_velocity_predictor()(st, times))},
-                                 {"crowd model", 40, 40, 210, as_paths(simulation_predictor(s, m, a.threads)(st, times))}};
+                                 {model_label(models.back()), 40, 40, 210, as_paths(simulation_predictor(s, models.back(), wo)(st, times))}};
     write_paths_png(a.out + "/prediction.png", s.geo, View::fit(s.geo, s.outputs.pixels_per_metre), sets,
                     "prediction from t = " + format_number(o.observe) + " s, " + format_number(o.horizon) + " s ahead");
     std::printf("wrote %s/prediction.json and %s/prediction.png\n", a.out.c_str(), a.out.c_str());
   }
+  return 0;
+}
+
+int cmd_train(const Args& a) {
+  if (a.help) { std::fputs(kTrainHelp, stdout); return 0; }
+  if (a.datasets.empty()) usage_error("train needs --scenario S --trajectories T [T...]");
+  if (a.out.empty()) usage_error("train needs --out MODEL.json");
+  if (!a.positional.empty()) usage_error("train takes no positional arguments (got '" + a.positional[0] + "')");
+  if (a.models.size() > 1) usage_error("train takes one --model (the starting point)");
+  std::vector<TrainDataset> data;
+  for (const auto& [scen, trajs] : a.datasets) {
+    if (scen.empty()) usage_error("--trajectories must follow the --scenario they were recorded in");
+    if (trajs.empty()) usage_error("--scenario " + scen + " has no --trajectories after it");
+    TrainDataset d{ScenarioDef::load(scen), {}};
+    for (const auto& f : trajs) d.recordings.push_back(TrajectorySet::read(f));
+    data.push_back(std::move(d));
+  }
+  Model start = !a.model.empty() ? Model::load(a.model) : data[0].scenario.model_or_default();
+  TrainOptions o = a.train;
+  if (a.stride_given) o.stride = a.stride;
+  o.threads = a.threads;
+  o.desired_speed = desired_speed_of(a);
+  const bool show = !a.quiet;
+  if (show) std::printf("training %s material from %zu scenario(s); windows of %g s every %g s\n", material_name(start.material),
+                        data.size(), o.window, o.stride);
+  TrainResult r = train_model(data, start, o, [&](const TrainProgress& p) {
+    if (!show) return;
+    if (std::isnan(p.validation_loss))
+      std::printf("  iter %4d  train loss %.5f m2  |grad| %.3g\n", p.iteration, p.train_loss, p.grad_norm);
+    else
+      std::printf("  iter %4d  train loss %.5f m2  |grad| %.3g  validation %.5f m2%s\n", p.iteration, p.train_loss,
+                  p.grad_norm, p.validation_loss, p.improved ? "  (best)" : "");
+    std::fflush(stdout);
+  });
+  Model m = r.model;
+  m.name = "learned";
+  std::string from;
+  for (const auto& [scen, trajs] : a.datasets)
+    for (const auto& f : trajs) from += (from.empty() ? "" : ", ") + std::filesystem::path(f).filename().string();
+  char desc[512];
+  std::snprintf(desc, sizeof desc,
+                "Learned by crowdmpm train from %s (%zu training, %zu validation windows of %g s); validation "
+                "trajectory loss %.5f m2 at the start, %.5f m2 at iteration %d of %d.",
+                from.c_str(), r.train_windows, r.validation_windows, o.window, r.initial_validation, r.best_validation,
+                r.best_iteration, r.iterations);
+  m.description = desc;
+  std::ofstream out(a.out);
+  if (!out) throw Error("cannot write " + a.out);
+  out << m.to_json().dump(2) << "\n";
+  out.close();
+  if (!out) throw Error("writing " + a.out + " failed");
+  std::printf("validation loss %.5f -> %.5f m2 (best at iteration %d of %d%s); %ld windows skipped; wrote %s\n",
+              r.initial_validation, r.best_validation, r.best_iteration, r.iterations,
+              r.early_stopped ? ", stopped early" : "", r.skipped_windows, a.out.c_str());
+  const ParamMap learned(m, o.params, false);
+  for (const auto& name : learned.scalars())
+    std::printf("  %-18s %.5g (start %.5g)\n", name.c_str(), m.get(name), start.get(name));
   return 0;
 }
 
@@ -266,13 +438,19 @@ int main(int argc, char** argv) {
   try {
     if (cmd == "help" || cmd == "--help" || cmd == "-h") {
       std::string sub = argc > 2 ? argv[2] : "";
-      std::fputs(sub == "simulate" ? kSimulateHelp : sub == "validate" ? kValidateHelp : sub == "predict" ? kPredictHelp : kUsage, stdout);
+      std::fputs(sub == "simulate"   ? kSimulateHelp
+                 : sub == "validate" ? kValidateHelp
+                 : sub == "predict"  ? kPredictHelp
+                 : sub == "train"    ? kTrainHelp
+                                     : kUsage,
+                 stdout);
       return 0;
     }
     Args a = parse_args(argc, argv, 2);
     if (cmd == "simulate") return cmd_simulate(a);
     if (cmd == "validate") return cmd_validate(a);
     if (cmd == "predict") return cmd_predict(a);
+    if (cmd == "train") return cmd_train(a);
     usage_error("unknown command '" + cmd + "'");
   } catch (const Error& e) {
     std::fprintf(stderr, "%scrowdmpm: error: %s\n", g_progress_line ? "\n" : "", e.what());

@@ -40,13 +40,13 @@ Eigen::Matrix4d local_jacobian(F&& f, const Eigen::Vector4d& at) {
 }
 }  // namespace
 
-ModelGradient WindowGradient::run(Simulation& sim, int steps, const PositionLossGrad& loss_grad) {
+ModelGradient WindowGradient::run(Simulation& sim, int steps, const StateLossGrad& loss_grad) {
   const Model& model = sim.model();
   if (model.material == MaterialKind::Elastic) throw Error("gradients cover the crowd and fluid materials only");
   const size_t n = sim.world().size();
   const std::vector<EntityId> ids = sim.world().id;
   std::vector<Stored> states;
-  std::vector<std::vector<Vec2>> loss_x(static_cast<size_t>(steps) + 1);
+  std::vector<std::vector<Vec2>> loss_x(static_cast<size_t>(steps) + 1), loss_v(static_cast<size_t>(steps) + 1);
   states.reserve(static_cast<size_t>(steps));
   for (int k = 0; k < steps; ++k) {
     states.push_back(store(sim.world()));
@@ -58,8 +58,11 @@ ModelGradient WindowGradient::run(Simulation& sim, int steps, const PositionLoss
     if (sim.world().size() != n || sim.world().id != ids)
       throw Error("an agent entered or left the world during the gradient window (step " + std::to_string(k + 1) +
                   "); gradients need a fixed set of agents");
-    std::vector<Vec2> g(n, Vec2::Zero());
-    if (loss_grad(k + 1, sim.world(), g)) loss_x[static_cast<size_t>(k) + 1] = std::move(g);
+    std::vector<Vec2> gx(n, Vec2::Zero()), gv(n, Vec2::Zero());
+    if (loss_grad(k + 1, sim.world(), gx, gv)) {
+      loss_x[static_cast<size_t>(k) + 1] = std::move(gx);
+      loss_v[static_cast<size_t>(k) + 1] = std::move(gv);
+    }
   }
   ModelGradient out;
   out.network.assign(model.traction.parameter_count(), 0);
@@ -79,7 +82,10 @@ ModelGradient WindowGradient::run(Simulation& sim, int steps, const PositionLoss
   const MaterialParams& P = model.params;
   for (int k = steps - 1; k >= 0; --k) {
     if (!loss_x[static_cast<size_t>(k) + 1].empty())
-      for (size_t p = 0; p < n; ++p) xb[p] += loss_x[static_cast<size_t>(k) + 1][p];
+      for (size_t p = 0; p < n; ++p) {
+        xb[p] += loss_x[static_cast<size_t>(k) + 1][p];
+        vb[p] += loss_v[static_cast<size_t>(k) + 1][p];
+      }
     // Step k's state with its stored drive and traction; neighbour lists are rebuilt, the
     // transfer adjoint recomputes the grid.
     restore(w, states[static_cast<size_t>(k)]);

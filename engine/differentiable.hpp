@@ -19,13 +19,14 @@ struct ModelGradient {
   std::vector<Vec2> x0, v0;     // initial positions and velocities, per particle (dense order at the start)
 };
 
-// dL/dx of the positions after step k (k = 1..steps), per particle; return false to add nothing.
-using PositionLossGrad = std::function<bool(int step, const World& w, std::vector<Vec2>& dL_dx)>;
+// dL/dx and dL/dv of the state after step k (k = 1..steps), per particle (both arrive zeroed,
+// sized to the agents); return false when the loss has no term at this step.
+using StateLossGrad = std::function<bool(int step, const World& w, std::vector<Vec2>& dL_dx, std::vector<Vec2>& dL_dv)>;
 
 class WindowGradient {
  public:
   // Runs `steps` steps of `sim` forward (it advances), recording states, then the backward pass.
-  ModelGradient run(Simulation& sim, int steps, const PositionLossGrad& loss_grad);
+  ModelGradient run(Simulation& sim, int steps, const StateLossGrad& loss_grad);
   size_t stored_bytes_per_agent_step() const { return 6 * sizeof(Vec2) + sizeof(Mat2) + sizeof(double); }
 };
 

@@ -61,6 +61,8 @@ Model Model::parse(const JsonReader& r, const std::string& source) {
   if (version != 1) r.fail_at("version", "unsupported model version " + std::to_string(version) + " (this engine reads 1)");
   Model m;
   m.source = source;
+  m.name = r.string("name", std::string());
+  m.description = r.string("description", std::string());
   std::string kind = r.one_of("material", {"crowd", "fluid", "elastic"}, "crowd");
   m.material = kind == "fluid" ? MaterialKind::Fluid : kind == "elastic" ? MaterialKind::Elastic : MaterialKind::Crowd;
   if (m.material == MaterialKind::Fluid) m.params.tension_scale = 1;
@@ -88,6 +90,8 @@ json Model::to_json() const {
   json j;
   j["format"] = "crowdmpm-model";
   j["version"] = 1;
+  if (!name.empty()) j["name"] = name;
+  if (!description.empty()) j["description"] = description;
   j["material"] = material_name(material);
   json p = json::object();
   for (const auto& info : param_table()) p[info.name] = params.*info.field;
@@ -104,14 +108,14 @@ static const ParamInfo& find_param(const std::string& name) {
   throw Error("unknown material parameter \"" + name + "\" (known: " + list + ")");
 }
 
-double Model::get(const std::string& name) const { return params.*find_param(name).field; }
+double Model::get(const std::string& param) const { return params.*find_param(param).field; }
 
-void Model::set(const std::string& name, double value) {
-  const auto& info = find_param(name);
+void Model::set(const std::string& param, double value) {
+  const auto& info = find_param(param);
   if (!(value >= info.lo && value <= info.hi))
-    throw Error("material parameter " + name + " must be in [" + format_number(info.lo) + ", " +
+    throw Error("material parameter " + param + " must be in [" + format_number(info.lo) + ", " +
                 format_number(info.hi) + "] " + info.unit + ", got " + format_number(value));
-  if (material == MaterialKind::Fluid && name == "tension_scale" && value != 1)
+  if (material == MaterialKind::Fluid && param == "tension_scale" && value != 1)
     throw Error("the fluid material is symmetric: tension_scale must be 1");
   params.*info.field = value;
 }

@@ -43,6 +43,7 @@ class Model {
   MaterialParams params;
   TractionNet traction;  // used by the crowd material only
   std::string source;    // where it was loaded from, for messages
+  std::string name, description;  // free text, kept through load and save
 
   static Model default_model();
   static Model parse(const JsonReader& r, const std::string& source);
@@ -51,8 +52,8 @@ class Model {
 
   bool has_traction() const { return material == MaterialKind::Crowd; }
   // Named access for the C ABI and the optimisers; throws Error on unknown names or bad values.
-  double get(const std::string& name) const;
-  void set(const std::string& name, double value);
+  double get(const std::string& param) const;
+  void set(const std::string& param, double value);
 };
 
 const char* material_name(MaterialKind k);

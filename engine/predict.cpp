@@ -1,5 +1,7 @@
 #include "engine/predict.hpp"
 
+#include "engine/losses.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -7,13 +9,18 @@
 
 namespace crowdmpm {
 
-ObservedState observe_at(const TrajectorySet& t, long frame, double velocity_window) {
+ObservedState observe_at(const TrajectorySet& t, long frame, double velocity_window, double speed_window) {
   ObservedState s;
   s.frame = frame;
+  auto positions_at = [&](long f) {
+    std::unordered_map<long, Vec2> at;
+    auto [b, e] = t.frame(f);
+    for (auto p = b; p != e; ++p) at[p->id] = Vec2(p->x, p->y);
+    return at;
+  };
   const long back = std::max(1L, std::lround(velocity_window * t.framerate));
-  auto [b0, e0] = t.frame(frame - back);
-  std::unordered_map<long, Vec2> before;
-  for (auto p = b0; p != e0; ++p) before[p->id] = Vec2(p->x, p->y);
+  const long back_s = std::max(back, std::lround(speed_window * t.framerate));
+  const auto before = positions_at(frame - back), long_before = positions_at(frame - back_s);
   auto [b, e] = t.frame(frame);
   for (auto p = b; p != e; ++p) {
     auto it = before.find(p->id);
@@ -22,12 +29,41 @@ ObservedState observe_at(const TrajectorySet& t, long frame, double velocity_win
     s.ids.push_back(p->id);
     s.x.push_back(x);
     s.v.push_back((x - it->second) * (t.framerate / static_cast<double>(back)));
+    auto il = long_before.find(p->id);
+    s.speed.push_back(il != long_before.end() ? (x - il->second).norm() * (t.framerate / static_cast<double>(back_s))
+                                              : s.v.back().norm());
   }
   return s;
 }
 
+namespace {
+// Grid velocity error between prediction and recording over frames f and f + 1 (prediction rows
+// prev and cur), agents seen in both.
+double grid_velocity_error(const TrajectorySet& t, long f, const std::unordered_map<long, size_t>& index,
+                           const std::vector<Vec2>& prev, const std::vector<Vec2>& cur, const Grid& grid, double min_mass) {
+  std::unordered_map<long, Vec2> rec0;
+  auto [b0, e0] = t.frame(f);
+  for (auto p = b0; p != e0; ++p) rec0[p->id] = Vec2(p->x, p->y);
+  std::vector<Vec2> xr, vr, xp, vp;
+  auto [b, e] = t.frame(f + 1);
+  for (auto p = b; p != e; ++p) {
+    auto it = index.find(p->id);
+    auto r0 = rec0.find(p->id);
+    if (it == index.end() || r0 == rec0.end()) continue;
+    const Vec2 &a = prev[it->second], &c = cur[it->second];
+    if (!a.allFinite() || !c.allFinite()) continue;
+    xr.emplace_back(p->x, p->y);
+    vr.push_back((xr.back() - r0->second) * t.framerate);
+    xp.push_back(c);
+    vp.push_back((c - a) * t.framerate);
+  }
+  if (xr.empty()) return std::nan("");
+  return grid_velocity_rms(grid_velocity_of(xp, vp, 1, grid, min_mass), grid_velocity_of(xr, vr, 1, grid, min_mass));
+}
+}  // namespace
+
 PredictionReport evaluate_predictor(const std::string& method, const TrajectorySet& t, const PredictOptions& o,
-                                    const Predictor& predict) {
+                                    const Predictor& predict, const Grid* grid) {
   PredictionReport r;
   r.method = method;
   const int seconds = std::max(1, static_cast<int>(std::floor(o.horizon + 1e-9)));
@@ -36,10 +72,12 @@ PredictionReport evaluate_predictor(const std::string& method, const TrajectoryS
   for (long k = 1; k <= horizon_frames; ++k) times.push_back(static_cast<double>(k) / t.framerate);
   std::vector<double> ade_sum(static_cast<size_t>(seconds), 0), fde_sum(static_cast<size_t>(seconds), 0);
   std::vector<long> ade_n(static_cast<size_t>(seconds), 0), fde_n(static_cast<size_t>(seconds), 0);
+  std::vector<double> gv_sum(static_cast<size_t>(seconds), 0);
+  std::vector<long> gv_n(static_cast<size_t>(seconds), 0);
   const long stride = std::max(1L, std::lround(o.stride * t.framerate));
   for (long f0 = t.frame_min() + std::lround(o.observe * t.framerate); f0 + horizon_frames <= t.frame_max(); f0 += stride) {
     if (o.max_windows > 0 && r.windows >= o.max_windows) break;
-    ObservedState s = observe_at(t, f0, o.velocity_window);
+    ObservedState s = observe_at(t, f0, o.velocity_window, o.speed_window);
     if (s.ids.empty()) continue;
     std::vector<std::vector<Vec2>> pred = predict(s, times);
     std::unordered_map<long, size_t> index;
@@ -67,6 +105,15 @@ PredictionReport evaluate_predictor(const std::string& method, const TrajectoryS
           ++ade_n[static_cast<size_t>(sec - 1)];
         }
       }
+      double tk = times[k];
+      int sec = static_cast<int>(std::lround(tk));
+      if (grid && k > 0 && std::abs(tk - sec) < 0.5 / t.framerate && sec >= 1 && sec <= seconds) {
+        double gv = grid_velocity_error(t, f0 + static_cast<long>(k), index, pred[k - 1], pred[k], *grid, o.grid_min_mass);
+        if (std::isfinite(gv)) {
+          gv_sum[static_cast<size_t>(sec - 1)] += gv;
+          ++gv_n[static_cast<size_t>(sec - 1)];
+        }
+      }
     }
     ++r.windows;
   }
@@ -76,6 +123,7 @@ PredictionReport evaluate_predictor(const std::string& method, const TrajectoryS
     h.samples = fde_n[static_cast<size_t>(sidx)];
     h.ade = ade_n[static_cast<size_t>(sidx)] ? ade_sum[static_cast<size_t>(sidx)] / static_cast<double>(ade_n[static_cast<size_t>(sidx)]) : std::nan("");
     h.fde = h.samples ? fde_sum[static_cast<size_t>(sidx)] / static_cast<double>(h.samples) : std::nan("");
+    h.grid_velocity_rms = gv_n[static_cast<size_t>(sidx)] ? gv_sum[static_cast<size_t>(sidx)] / static_cast<double>(gv_n[static_cast<size_t>(sidx)]) : std::nan("");
     r.horizons.push_back(h);
   }
   return r;
@@ -90,55 +138,70 @@ Predictor constant_velocity_predictor() {
   };
 }
 
-Predictor simulation_predictor(const ScenarioDef& scenario, const Model& model, int threads) {
+ScenarioDef window_scenario(const ScenarioDef& scenario, bool keep_exits) {
   if (scenario.groups.empty()) throw Error(scenario.source + ": prediction needs a group whose behaviour the observed people follow");
   ScenarioDef base = scenario;
   for (auto& g : base.groups) {
     if (g.is_source) g.max_count = 0;
     else g.count = 0;
   }
-  return [base, model, threads](const ObservedState& s, const std::vector<double>& times) {
-    ScenarioDef sc = base;
-    sc.duration = 1e6;
-    sc.stop_when_empty = false;
-    Simulation sim(sc, model, threads);
-    const double clearance = model.params.wall_clearance;
-    std::vector<EntityId> ids;
-    // Bodies must fit the observed crowd: recorded crowds reach 9-11 persons/m², closer than
-    // the model's default bodies allow, and starting them overlapped would throw them apart.
-    // Each agent's radius is at most half its nearest observed neighbour's distance.
-    std::vector<double> nearest(s.x.size(), 1e300);
-    for (size_t i = 0; i < s.x.size(); ++i)
-      for (size_t j = i + 1; j < s.x.size(); ++j) {
-        double d = (s.x[i] - s.x[j]).norm();
-        nearest[i] = std::min(nearest[i], d);
-        nearest[j] = std::min(nearest[j], d);
-      }
-    for (size_t i = 0; i < s.x.size(); ++i) {
-      AgentDef a;
-      Vec2 x = s.x[i];
-      for (int it = 0; it < 8 && sc.geo.sdf(x) < clearance; ++it) {
-        Vec2 n = sc.geo.normal(x);
-        if (n.squaredNorm() == 0) break;
-        x += (clearance - sc.geo.sdf(x) + 1e-6) * n;
-      }
-      a.position = x;
-      a.velocity = s.v[i];
-      a.body_radius = std::clamp(0.5 * nearest[i], 0.05, model.params.body_radius);
-      a.comfort_distance = model.params.comfort_distance;
-      a.desired_speed = base.groups[0].desired_speed;
-      a.behaviour = 1;  // the first group's behaviour
-      a.group = 0;
-      ids.push_back(sim.geo_ok(x) ? sim.add_agent(a) : 0);
+  base.duration = 1e6;
+  base.stop_when_empty = false;
+  if (!keep_exits) {
+    for (auto& e : base.geo.exits) base.geo.goals.push_back(e);
+    base.geo.exits.clear();
+  }
+  return base;
+}
+
+WindowSim start_window(const ScenarioDef& sc, const Model& model, const ObservedState& s, const WindowOptions& o) {
+  WindowSim ws;
+  ws.sim = std::make_unique<Simulation>(sc, model, o.threads);
+  Simulation& sim = *ws.sim;
+  const double clearance = model.params.wall_clearance;
+  // Bodies must fit the observed crowd: recorded crowds reach 9-11 persons/m², closer than
+  // the model's default bodies allow, and starting them overlapped would throw them apart.
+  // Each agent's radius is at most half its nearest observed neighbour's distance.
+  std::vector<double> nearest(s.x.size(), 1e300);
+  for (size_t i = 0; i < s.x.size(); ++i)
+    for (size_t j = i + 1; j < s.x.size(); ++j) {
+      double d = (s.x[i] - s.x[j]).norm();
+      nearest[i] = std::min(nearest[i], d);
+      nearest[j] = std::min(nearest[j], d);
     }
+  for (size_t i = 0; i < s.x.size(); ++i) {
+    AgentDef a;
+    Vec2 x = s.x[i];
+    for (int it = 0; it < 8 && sc.geo.sdf(x) < clearance; ++it) {
+      Vec2 n = sc.geo.normal(x);
+      if (n.squaredNorm() == 0) break;
+      x += (clearance - sc.geo.sdf(x) + 1e-6) * n;
+    }
+    a.position = x;
+    a.velocity = s.v[i];
+    a.body_radius = std::clamp(0.5 * nearest[i], 0.05, model.params.body_radius);
+    a.comfort_distance = model.params.comfort_distance;
+    a.desired_speed = o.desired_speed == DesiredSpeed::Observed && i < s.speed.size() ? s.speed[i] : sc.groups[0].desired_speed;
+    a.behaviour = 1;  // the first group's behaviour
+    a.group = 0;
+    ws.ids.push_back(sim.geo_ok(x) ? sim.add_agent(a) : 0);
+  }
+  return ws;
+}
+
+Predictor simulation_predictor(const ScenarioDef& scenario, const Model& model, const WindowOptions& o) {
+  ScenarioDef base = window_scenario(scenario, true);
+  return [base, model, o](const ObservedState& s, const std::vector<double>& times) {
+    WindowSim ws = start_window(base, model, s, o);
+    Simulation& sim = *ws.sim;
     std::vector<std::vector<Vec2>> out(times.size());
     const double nan = std::numeric_limits<double>::quiet_NaN();
     double t = 0;
     for (size_t k = 0; k < times.size(); ++k) {
-      long steps = std::lround((times[k] - t) / sc.dt);
+      long steps = std::lround((times[k] - t) / base.dt);
       sim.run_steps(steps);
-      t += static_cast<double>(steps) * sc.dt;
-      for (EntityId id : ids) {
+      t += static_cast<double>(steps) * base.dt;
+      for (EntityId id : ws.ids) {
         long i = id ? sim.world().index_of(id) : -1;
         out[k].push_back(i >= 0 ? sim.world().x[static_cast<size_t>(i)] : Vec2(nan, nan));
       }
@@ -151,7 +214,8 @@ json report_to_json(const PredictionReport& r) {
   json h = json::array();
   for (const auto& e : r.horizons)
     h.push_back({{"horizon_s", e.horizon}, {"ade_m", std::isfinite(e.ade) ? json(e.ade) : json(nullptr)},
-                 {"fde_m", std::isfinite(e.fde) ? json(e.fde) : json(nullptr)}, {"samples", e.samples}});
+                 {"fde_m", std::isfinite(e.fde) ? json(e.fde) : json(nullptr)}, {"samples", e.samples},
+                 {"grid_velocity_rms_m_s", std::isfinite(e.grid_velocity_rms) ? json(e.grid_velocity_rms) : json(nullptr)}});
   return {{"method", r.method}, {"windows", r.windows}, {"horizons", h}};
 }
 

@@ -5,6 +5,7 @@
 // every `stride` seconds. Agents are compared only while both the recording and the prediction
 // have them (people entering the view later, or leaving it, or leaving through an exit, are masked).
 #include <functional>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -18,8 +19,10 @@ struct PredictOptions {
   double horizon = 4;       // s
   double stride = 4;        // s between window starts
   double velocity_window = 0.5;  // s: initial velocity = displacement over this much history
+  double speed_window = 1;  // s: observed walking speed = displacement over this much history / it
   int threads = 1;
   int max_windows = 0;      // 0: all windows that fit
+  double grid_min_mass = 0.5;  // persons on a node's stencil for it to count in the grid velocity error
 };
 
 struct HorizonError {
@@ -27,6 +30,7 @@ struct HorizonError {
   double ade = 0;      // mean displacement error over (agent, time <= horizon), m
   double fde = 0;      // mean displacement error at the horizon, m
   long samples = 0;    // agents compared at the horizon
+  double grid_velocity_rms = 0;  // m/s: RMS of (predicted - recorded) grid velocity at the horizon, NaN if none
 };
 
 struct PredictionReport {
@@ -40,24 +44,50 @@ struct ObservedState {
   long frame = 0;
   std::vector<long> ids;
   std::vector<Vec2> x, v;
+  std::vector<double> speed;  // m/s over the speed window (over the velocity window if the history is shorter)
 };
 
-ObservedState observe_at(const TrajectorySet& t, long frame, double velocity_window);
+ObservedState observe_at(const TrajectorySet& t, long frame, double velocity_window, double speed_window = 1);
+
+// Where a window's agents get their desired speed: the scenario's group (times the model's
+// v0_scale), or each person's own observed walking speed (times v0_scale).
+enum class DesiredSpeed { Scenario, Observed };
+
+struct WindowOptions {
+  int threads = 1;
+  DesiredSpeed desired_speed = DesiredSpeed::Observed;
+  // false: exits become goals of the same shape (nobody leaves, so the set of agents stays
+  // fixed, as gradients need; training masks people once the recording loses them).
+  bool keep_exits = true;
+};
+
+// A scenario ready to take observed agents: its groups and sources emptied, no time limit.
+ScenarioDef window_scenario(const ScenarioDef& scenario, bool keep_exits);
+
+// A simulation started from an observed state: the observed agents placed (moved out of solids
+// if a recorded head leans over a barrier; body radius at most half the distance to the nearest
+// observed neighbour) with the behaviour of the scenario's first group. ids[i] is the entity of
+// observed agent i, 0 if it could not be placed.
+struct WindowSim {
+  std::unique_ptr<Simulation> sim;
+  std::vector<EntityId> ids;
+};
+WindowSim start_window(const ScenarioDef& windowed, const Model& model, const ObservedState& s, const WindowOptions& o);
 
 // Rolls one window forward with a predictor and accumulates errors. A predictor gets the
 // observed state and a list of times (s after t0) and returns, per time, a position per agent
 // (NaN where the agent is gone).
 using Predictor = std::function<std::vector<std::vector<Vec2>>(const ObservedState&, const std::vector<double>&)>;
+// With a grid, also the grid velocity error at every whole second: velocities by one-frame
+// differences of predicted and of recorded positions (agents seen in both), each transferred to
+// the grid (losses.hpp, grid_velocity_of) and compared where both have at least grid_min_mass.
 PredictionReport evaluate_predictor(const std::string& method, const TrajectorySet& t, const PredictOptions& o,
-                                    const Predictor& predict);
+                                    const Predictor& predict, const Grid* grid = nullptr);
 
 // Constant velocity: x(t) = x0 + v0 t.
 Predictor constant_velocity_predictor();
-// The crowd material: the scenario's geometry and behaviours (its groups and sources emptied),
-// the observed agents placed (moved out of solids if a recorded head leans over a barrier, body
-// radius at most half the distance to the nearest observed neighbour) with the behaviour of
-// the scenario's first group.
-Predictor simulation_predictor(const ScenarioDef& scenario, const Model& model, int threads);
+// The model (any material) rolled forward from start_window.
+Predictor simulation_predictor(const ScenarioDef& scenario, const Model& model, const WindowOptions& o);
 
 json report_to_json(const PredictionReport& r);
 

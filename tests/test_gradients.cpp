@@ -362,7 +362,7 @@ double window_gradient_error(int steps) {
   // The scene must exercise contacts and the traction network.
   REQUIRE(sim->pair_stats().pairs > 10);
   WindowGradient wg;
-  ModelGradient g = wg.run(*sim, steps, [&](int k, const World& w, std::vector<Vec2>& d) {
+  ModelGradient g = wg.run(*sim, steps, [&](int k, const World& w, std::vector<Vec2>& d, std::vector<Vec2>&) {
     for (size_t p = 0; p < w.size(); ++p) d[p] = 2 * (w.x[p] - target[static_cast<size_t>(k)][p]);
     return true;
   });

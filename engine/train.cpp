@@ -1,0 +1,260 @@
+#include "engine/train.hpp"
+
+#include "engine/losses.hpp"
+#include "engine/optim.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace crowdmpm {
+
+const std::vector<std::string>& differentiable_params() {
+  static const std::vector<std::string> names = {"E",        "gamma",           "tension_scale", "tau",
+                                                 "v0_scale", "comfort_distance", "alignment_time"};
+  return names;
+}
+
+namespace {
+double gradient_of(const ModelGradient& g, const std::string& name) {
+  if (name == "E") return g.E;
+  if (name == "gamma") return g.gamma;
+  if (name == "tension_scale") return g.tension_scale;
+  if (name == "tau") return g.tau;
+  if (name == "v0_scale") return g.v0_scale;
+  if (name == "comfort_distance") return g.comfort_distance;
+  if (name == "alignment_time") return g.alignment_time;
+  throw Error("parameter '" + name + "' has no gradient; learnable by gradient: E, gamma, tension_scale, tau, "
+              "v0_scale, comfort_distance, alignment_time");
+}
+
+const ParamInfo& info_of(const std::string& name) {
+  for (const auto& p : param_table())
+    if (name == p.name) return p;
+  throw Error("unknown model parameter '" + name + "'");
+}
+
+// Smallest value a log-coordinate parameter is clamped to.
+double log_floor(const ParamInfo& p) { return std::max(p.lo, 1e-6); }
+}  // namespace
+
+ParamMap::ParamMap(const Model& m, std::vector<std::string> scalars, bool network) : scalars_(std::move(scalars)) {
+  if (scalars_.empty())
+    for (const auto& s : differentiable_params())
+      if (!(s == "tension_scale" && m.material == MaterialKind::Fluid)) scalars_.push_back(s);
+  ModelGradient probe;
+  for (const auto& s : scalars_) {
+    gradient_of(probe, s);  // throws for parameters without a gradient
+    if (s == "tension_scale" && m.material == MaterialKind::Fluid)
+      throw Error("the fluid material is symmetric: tension_scale is fixed at 1 and cannot be learned");
+    log_.push_back(s != "tension_scale");
+  }
+  if (network && m.has_traction()) network_size_ = m.traction.parameter_count();
+}
+
+std::vector<double> ParamMap::get(const Model& m) const {
+  std::vector<double> u;
+  for (size_t i = 0; i < scalars_.size(); ++i) {
+    double p = m.get(scalars_[i]);
+    u.push_back(log_[i] ? std::log(std::max(p, log_floor(info_of(scalars_[i])))) : p);
+  }
+  if (network_size_) {
+    std::vector<double> th = m.traction.parameters();
+    u.insert(u.end(), th.begin(), th.end());
+  }
+  return u;
+}
+
+void ParamMap::set(Model& m, const std::vector<double>& u) const {
+  if (u.size() != size()) throw Error("ParamMap::set: expected " + std::to_string(size()) + " values");
+  for (size_t i = 0; i < scalars_.size(); ++i) {
+    const ParamInfo& info = info_of(scalars_[i]);
+    double p = log_[i] ? std::exp(u[i]) : u[i];
+    m.set(scalars_[i], std::clamp(p, log_[i] ? log_floor(info) : info.lo, info.hi));
+  }
+  if (network_size_) m.traction.set_parameters(std::vector<double>(u.begin() + static_cast<long>(scalars_.size()), u.end()));
+}
+
+std::vector<double> ParamMap::gradient(const Model& m, const ModelGradient& g) const {
+  std::vector<double> d;
+  for (size_t i = 0; i < scalars_.size(); ++i) {
+    double gi = gradient_of(g, scalars_[i]);
+    d.push_back(log_[i] ? gi * m.get(scalars_[i]) : gi);  // dL/dlog p = p dL/dp
+  }
+  if (network_size_) d.insert(d.end(), g.network.begin(), g.network.end());
+  return d;
+}
+
+void make_windows(const std::vector<TrainDataset>& data, const TrainOptions& o, std::vector<TrainWindow>& train,
+                  std::vector<TrainWindow>& validation) {
+  train.clear();
+  validation.clear();
+  for (size_t d = 0; d < data.size(); ++d)
+    for (size_t r = 0; r < data[d].recordings.size(); ++r) {
+      const TrajectorySet& t = data[d].recordings[r];
+      const long history = std::lround(std::max(o.velocity_window, o.speed_window) * t.framerate);
+      const long length = std::lround(o.window * t.framerate);
+      const long stride = std::max(1L, std::lround(o.stride * t.framerate));
+      std::vector<TrainWindow> all;
+      for (long f = t.frame_min() + history; f + length <= t.frame_max(); f += stride) all.push_back({d, r, f});
+      const size_t n_val = static_cast<size_t>(std::ceil(o.validation_fraction * static_cast<double>(all.size())));
+      const size_t n_train = all.size() - std::min(all.size(), n_val);
+      // Windows that would overlap the validation part in time are left out of training.
+      const long val_start = n_train < all.size() ? all[n_train].frame : std::numeric_limits<long>::max();
+      for (size_t i = 0; i < all.size(); ++i) {
+        if (i >= n_train) validation.push_back(all[i]);
+        else if (all[i].frame + length <= val_start) train.push_back(all[i]);
+      }
+    }
+}
+
+double window_loss(const ScenarioDef& windowed, const TrajectorySet& t, long frame, const Model& m,
+                   const TrainOptions& o, ModelGradient* grad) {
+  const ObservedState s = observe_at(t, frame, o.velocity_window, o.speed_window);
+  WindowSim ws = start_window(windowed, m, s, WindowOptions{o.threads, o.desired_speed, false});
+  Simulation& sim = *ws.sim;
+  const size_t n = sim.world().size();
+  if (n == 0) return std::numeric_limits<double>::quiet_NaN();
+  // Targets in dense order (agents were added in observed order, none removed).
+  std::vector<long> dense_of_id;
+  std::vector<std::pair<long, size_t>> placed;  // (recorded id, dense index)
+  for (size_t i = 0; i < ws.ids.size(); ++i)
+    if (ws.ids[i]) placed.emplace_back(s.ids[i], static_cast<size_t>(sim.world().index_of(ws.ids[i])));
+  std::sort(placed.begin(), placed.end());
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  TrajectoryTarget target;
+  const long frames = std::lround(o.window * t.framerate);
+  for (long k = 1; k <= frames; ++k) {
+    const int step = static_cast<int>(std::lround(static_cast<double>(k) / t.framerate / windowed.dt));
+    if (step < 1 || (!target.steps.empty() && step <= target.steps.back())) continue;
+    std::vector<Vec2> row(n, Vec2(nan, nan));
+    auto [b, e] = t.frame(frame + k);
+    for (auto p = b; p != e; ++p) {
+      auto it = std::lower_bound(placed.begin(), placed.end(), std::make_pair(p->id, size_t{0}));
+      if (it != placed.end() && it->first == p->id) row[it->second] = Vec2(p->x, p->y);
+    }
+    target.steps.push_back(step);
+    target.targets.push_back(std::move(row));
+  }
+  const long samples = target.samples();
+  if (samples == 0 || target.steps.empty()) return nan;
+  const double weight = 1.0 / static_cast<double>(samples);
+  const int steps = target.steps.back();
+  double loss = 0;
+  size_t next = 0;
+  if (!grad) {
+    for (int k = 1; k <= steps; ++k) {
+      sim.step();
+      if (next < target.steps.size() && target.steps[next] == k) trajectory_loss_at(sim.world().x, target.targets[next++], weight, loss, nullptr);
+    }
+    return loss;
+  }
+  WindowGradient wg;
+  *grad = wg.run(sim, steps, [&](int k, const World& w, std::vector<Vec2>& dx, std::vector<Vec2>&) {
+    if (next >= target.steps.size() || target.steps[next] != k) return false;
+    trajectory_loss_at(w.x, target.targets[next++], weight, loss, &dx);
+    return true;
+  });
+  return loss;
+}
+
+TrainResult train_model(const std::vector<TrainDataset>& data, const Model& start, const TrainOptions& o,
+                        const std::function<void(const TrainProgress&)>& progress) {
+  if (start.material == MaterialKind::Elastic) throw Error("training covers the crowd and fluid materials");
+  std::vector<TrainWindow> train, val;
+  make_windows(data, o, train, val);
+  if (train.empty() || val.empty())
+    throw Error("training needs recordings long enough for windows of " + std::to_string(o.window) +
+                " s for both training and validation (got " + std::to_string(train.size()) + " training and " +
+                std::to_string(val.size()) + " validation windows)");
+  std::vector<ScenarioDef> windowed;
+  for (const auto& d : data) windowed.push_back(window_scenario(d.scenario, false));
+
+  TrainResult res;
+  res.train_windows = train.size();
+  res.validation_windows = val.size();
+  Model model = start;
+  const ParamMap map(model, o.params, o.learn_network);
+  std::vector<double> u = map.get(model);
+  map.set(model, u);  // clamp the start into bounds the way every later step is
+  Adam adam(u.size(), o.learning_rate);
+  adam.set_clip_norm(o.clip_norm);
+  Rng rng(o.seed);
+
+  auto validation_loss = [&](const Model& m) {
+    double sum = 0;
+    long n = 0;
+    for (const auto& w : val) {
+      double l;
+      try {
+        l = window_loss(windowed[w.dataset], data[w.dataset].recordings[w.recording], w.frame, m, o, nullptr);
+      } catch (const Error&) {
+        return std::numeric_limits<double>::infinity();  // this model breaks a simulation: not a candidate
+      }
+      if (std::isfinite(l)) {
+        sum += l;
+        ++n;
+      }
+    }
+    return n ? sum / static_cast<double>(n) : std::numeric_limits<double>::quiet_NaN();
+  };
+
+  res.initial_validation = res.best_validation = validation_loss(model);
+  res.model = model;
+  int since_best = 0;
+  for (int it = 1; it <= o.iterations; ++it) {
+    TrainProgress pr;
+    pr.iteration = it;
+    pr.validation_loss = std::numeric_limits<double>::quiet_NaN();
+    std::vector<double> g(u.size(), 0);
+    double loss_sum = 0;
+    int used = 0;
+    for (int b = 0; b < o.batch; ++b) {
+      const TrainWindow& w = train[static_cast<size_t>(rng.next() % train.size())];
+      ModelGradient mg;
+      double l;
+      try {
+        l = window_loss(windowed[w.dataset], data[w.dataset].recordings[w.recording], w.frame, model, o, &mg);
+      } catch (const Error&) {
+        ++res.skipped_windows;
+        continue;
+      }
+      if (!std::isfinite(l)) continue;
+      std::vector<double> gu = map.gradient(model, mg);
+      bool finite = true;
+      for (double x : gu) finite = finite && std::isfinite(x);
+      if (!finite) {
+        ++res.skipped_windows;
+        continue;
+      }
+      for (size_t i = 0; i < g.size(); ++i) g[i] += gu[i];
+      loss_sum += l;
+      ++used;
+    }
+    if (used == 0) continue;
+    for (double& x : g) x /= used;
+    pr.train_loss = loss_sum / used;
+    pr.grad_norm = adam.step(u, g);
+    map.set(model, u);
+    u = map.get(model);  // clamped values back into the optimiser's coordinates
+    res.iterations = it;
+    if (it % o.eval_every == 0 || it == o.iterations) {
+      pr.validation_loss = validation_loss(model);
+      if (pr.validation_loss < res.best_validation) {
+        res.best_validation = pr.validation_loss;
+        res.best_iteration = it;
+        res.model = model;
+        pr.improved = true;
+        since_best = 0;
+      } else if (++since_best >= o.patience) {
+        res.early_stopped = true;
+      }
+    }
+    res.history.push_back(pr);
+    if (progress) progress(pr);
+    if (res.early_stopped) break;
+  }
+  return res;
+}
+
+}  // namespace crowdmpm

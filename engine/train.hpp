@@ -1,0 +1,98 @@
+#pragma once
+// Learning the crowd material from tracked trajectories (DESIGN.md section 4): windows are cut
+// from recordings; each starts from the observed state (positions, velocities, walking speeds),
+// runs the simulator for a few seconds in the recording's venue and is scored by the trajectory
+// loss (losses.hpp) against where the people were recorded; WindowGradient gives the gradient
+// of that loss for every learnable parameter, and Adam with gradient-norm clipping moves them.
+// The last part of every recording is held out for validation and early stopping.
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "engine/differentiable.hpp"
+#include "engine/predict.hpp"
+
+namespace crowdmpm {
+
+struct TrainDataset {
+  ScenarioDef scenario;                    // the recordings' venue; its first group's behaviour is used
+  std::vector<TrajectorySet> recordings;
+};
+
+struct TrainOptions {
+  double window = 2;             // s simulated per window
+  double stride = 1;             // s between window starts
+  double velocity_window = 0.5;  // s, as PredictOptions
+  double speed_window = 1;       // s, as PredictOptions
+  DesiredSpeed desired_speed = DesiredSpeed::Observed;
+  int iterations = 120;
+  int batch = 4;                 // windows per Adam step
+  double learning_rate = 0.03;   // in the optimiser's coordinates (log of positive parameters)
+  double clip_norm = 1;          // gradient-norm clipping (0: off)
+  double validation_fraction = 0.25;  // the last share of every recording's windows
+  int eval_every = 5;            // iterations between validation passes
+  int patience = 6;              // validation passes without improvement before stopping
+  uint64_t seed = 1;             // minibatch sampling
+  std::vector<std::string> params;  // scalar parameters to learn; empty: all with gradients
+  bool learn_network = true;     // the traction network's weights and biases (crowd material)
+  int threads = 1;
+};
+
+// The learnable parameters as one vector in the optimiser's coordinates: log p for the positive
+// scalars, p for tension_scale, the raw network parameters; set() clamps to param_table() bounds.
+class ParamMap {
+ public:
+  ParamMap(const Model& m, std::vector<std::string> scalars, bool network);
+  std::vector<double> get(const Model& m) const;
+  void set(Model& m, const std::vector<double>& u) const;
+  std::vector<double> gradient(const Model& m, const ModelGradient& g) const;  // dL/du
+  const std::vector<std::string>& scalars() const { return scalars_; }
+  size_t size() const { return scalars_.size() + network_size_; }
+
+ private:
+  std::vector<std::string> scalars_;
+  std::vector<char> log_;
+  size_t network_size_ = 0;
+};
+
+// The scalar parameters WindowGradient differentiates.
+const std::vector<std::string>& differentiable_params();
+
+struct TrainWindow {
+  size_t dataset = 0, recording = 0;
+  long frame = 0;  // the window's first frame (its observed state)
+};
+
+// Training and validation windows of the datasets (validation: the last share of each recording).
+void make_windows(const std::vector<TrainDataset>& data, const TrainOptions& o, std::vector<TrainWindow>& train,
+                  std::vector<TrainWindow>& validation);
+
+// The trajectory loss of one window under a model (mean squared position error, m^2, over every
+// recorded frame of the window and every person seen at its start), and its gradient when
+// `grad` is given. Returns NaN when the window has nobody to compare.
+double window_loss(const ScenarioDef& windowed, const TrajectorySet& t, long frame, const Model& m,
+                   const TrainOptions& o, ModelGradient* grad);
+
+struct TrainProgress {
+  int iteration = 0;
+  double train_loss = 0;       // minibatch mean
+  double grad_norm = 0;        // before clipping
+  double validation_loss = 0;  // NaN when this iteration had no validation pass
+  bool improved = false;
+};
+
+struct TrainResult {
+  Model model;                  // the parameters with the best validation loss
+  double initial_validation = 0, best_validation = 0;
+  int best_iteration = 0, iterations = 0;
+  bool early_stopped = false;
+  size_t train_windows = 0, validation_windows = 0;
+  long skipped_windows = 0;     // windows whose simulation failed (non-finite) and were left out
+  std::vector<TrainProgress> history;
+};
+
+// Throws Error when there are no training or no validation windows.
+TrainResult train_model(const std::vector<TrainDataset>& data, const Model& start, const TrainOptions& o,
+                        const std::function<void(const TrainProgress&)>& progress = nullptr);
+
+}  // namespace crowdmpm
