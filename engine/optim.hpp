@@ -10,6 +10,7 @@ class Adam {
   explicit Adam(size_t n, double learning_rate = 1e-3, double beta1 = 0.9, double beta2 = 0.999, double eps = 1e-8);
   // Scales the gradient down to this L2 norm when it is larger (0: no clipping).
   void set_clip_norm(double c) { clip_ = c; }
+  void set_learning_rate(double lr) { lr_ = lr; }
   // One update of params against grad (same length). Returns the gradient norm before clipping.
   double step(std::vector<double>& params, const std::vector<double>& grad);
   long steps() const { return t_; }

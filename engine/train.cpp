@@ -89,55 +89,62 @@ void make_windows(const std::vector<TrainDataset>& data, const TrainOptions& o, 
                   std::vector<TrainWindow>& validation) {
   train.clear();
   validation.clear();
+  const double nan = std::numeric_limits<double>::quiet_NaN();
   for (size_t d = 0; d < data.size(); ++d)
-    for (size_t r = 0; r < data[d].recordings.size(); ++r) {
-      const TrajectorySet& t = data[d].recordings[r];
+    for (const TrajectorySet& t : data[d].recordings) {
       const long history = std::lround(std::max(o.velocity_window, o.speed_window) * t.framerate);
       const long length = std::lround(o.window * t.framerate);
       const long stride = std::max(1L, std::lround(o.stride * t.framerate));
-      std::vector<TrainWindow> all;
-      for (long f = t.frame_min() + history; f + length <= t.frame_max(); f += stride) all.push_back({d, r, f});
-      const size_t n_val = static_cast<size_t>(std::ceil(o.validation_fraction * static_cast<double>(all.size())));
-      const size_t n_train = all.size() - std::min(all.size(), n_val);
-      // Windows that would overlap the validation part in time are left out of training.
-      const long val_start = n_train < all.size() ? all[n_train].frame : std::numeric_limits<long>::max();
-      for (size_t i = 0; i < all.size(); ++i) {
-        if (i >= n_train) validation.push_back(all[i]);
-        else if (all[i].frame + length <= val_start) train.push_back(all[i]);
+      std::vector<long> starts;
+      for (long f = t.frame_min() + history; f + length <= t.frame_max(); f += stride) starts.push_back(f);
+      const size_t n_val = static_cast<size_t>(std::ceil(o.validation_fraction * static_cast<double>(starts.size())));
+      const size_t n_train = starts.size() - std::min(starts.size(), n_val);
+      const long val_start = n_train < starts.size() ? starts[n_train] : std::numeric_limits<long>::max();
+      for (size_t i = 0; i < starts.size(); ++i) {
+        const bool is_val = i >= n_train;
+        if (!is_val && starts[i] + length > val_start) continue;
+        TrainWindow w;
+        w.dataset = d;
+        w.start = observe_at(t, starts[i], o.velocity_window, o.speed_window);
+        w.framerate = t.framerate;
+        std::vector<std::pair<long, size_t>> order;  // (recorded id, index in start)
+        for (size_t k = 0; k < w.start.ids.size(); ++k) order.emplace_back(w.start.ids[k], k);
+        std::sort(order.begin(), order.end());
+        for (long k = 1; k <= length; ++k) {
+          std::vector<Vec2> row(w.start.ids.size(), Vec2(nan, nan));
+          auto [b, e] = t.frame(starts[i] + k);
+          for (auto p = b; p != e; ++p) {
+            auto it = std::lower_bound(order.begin(), order.end(), std::make_pair(p->id, size_t{0}));
+            if (it != order.end() && it->first == p->id) row[it->second] = Vec2(p->x, p->y);
+          }
+          w.seen.push_back(std::move(row));
+        }
+        if (w.start.ids.empty()) continue;
+        (is_val ? validation : train).push_back(std::move(w));
       }
     }
 }
 
-double window_loss(const ScenarioDef& windowed, const TrajectorySet& t, long frame, const Model& m,
-                   const TrainOptions& o, ModelGradient* grad) {
-  const ObservedState s = observe_at(t, frame, o.velocity_window, o.speed_window);
-  WindowSim ws = start_window(windowed, m, s, WindowOptions{o.threads, o.desired_speed, false});
+double window_loss(const ScenarioDef& windowed, const TrainWindow& tw, const Model& m, const TrainOptions& o,
+                   ModelGradient* grad) {
+  WindowSim ws = start_window(windowed, m, tw.start, WindowOptions{o.threads, o.desired_speed, false});
   Simulation& sim = *ws.sim;
   const size_t n = sim.world().size();
-  if (n == 0) return std::numeric_limits<double>::quiet_NaN();
-  // Targets in dense order (agents were added in observed order, none removed).
-  std::vector<long> dense_of_id;
-  std::vector<std::pair<long, size_t>> placed;  // (recorded id, dense index)
-  for (size_t i = 0; i < ws.ids.size(); ++i)
-    if (ws.ids[i]) placed.emplace_back(s.ids[i], static_cast<size_t>(sim.world().index_of(ws.ids[i])));
-  std::sort(placed.begin(), placed.end());
   const double nan = std::numeric_limits<double>::quiet_NaN();
+  if (n == 0) return nan;
+  // Targets in dense order (agents were added in observed order, none removed).
   TrajectoryTarget target;
-  const long frames = std::lround(o.window * t.framerate);
-  for (long k = 1; k <= frames; ++k) {
-    const int step = static_cast<int>(std::lround(static_cast<double>(k) / t.framerate / windowed.dt));
+  for (size_t k = 0; k < tw.seen.size(); ++k) {
+    const int step = static_cast<int>(std::lround(static_cast<double>(k + 1) / tw.framerate / windowed.dt));
     if (step < 1 || (!target.steps.empty() && step <= target.steps.back())) continue;
     std::vector<Vec2> row(n, Vec2(nan, nan));
-    auto [b, e] = t.frame(frame + k);
-    for (auto p = b; p != e; ++p) {
-      auto it = std::lower_bound(placed.begin(), placed.end(), std::make_pair(p->id, size_t{0}));
-      if (it != placed.end() && it->first == p->id) row[it->second] = Vec2(p->x, p->y);
-    }
+    for (size_t i = 0; i < ws.ids.size(); ++i)
+      if (ws.ids[i]) row[static_cast<size_t>(sim.world().index_of(ws.ids[i]))] = tw.seen[k][i];
     target.steps.push_back(step);
     target.targets.push_back(std::move(row));
   }
   const long samples = target.samples();
-  if (samples == 0 || target.steps.empty()) return nan;
+  if (samples == 0) return nan;
   const double weight = 1.0 / static_cast<double>(samples);
   const int steps = target.steps.back();
   double loss = 0;
@@ -145,7 +152,7 @@ double window_loss(const ScenarioDef& windowed, const TrajectorySet& t, long fra
   if (!grad) {
     for (int k = 1; k <= steps; ++k) {
       sim.step();
-      if (next < target.steps.size() && target.steps[next] == k) trajectory_loss_at(sim.world().x, target.targets[next++], weight, loss, nullptr);
+      if (target.steps[next] == k) trajectory_loss_at(sim.world().x, target.targets[next++], weight, loss, nullptr);
     }
     return loss;
   }
@@ -159,16 +166,27 @@ double window_loss(const ScenarioDef& windowed, const TrajectorySet& t, long fra
 }
 
 TrainResult train_model(const std::vector<TrainDataset>& data, const Model& start, const TrainOptions& o,
-                        const std::function<void(const TrainProgress&)>& progress) {
-  if (start.material == MaterialKind::Elastic) throw Error("training covers the crowd and fluid materials");
+                        const TrainCallback& progress) {
   std::vector<TrainWindow> train, val;
   make_windows(data, o, train, val);
+  std::vector<ScenarioDef> scenarios;
+  for (const auto& d : data) scenarios.push_back(d.scenario);
+  return train_on_windows(scenarios, train, val, start, o, progress);
+}
+
+TrainResult train_on_windows(const std::vector<ScenarioDef>& scenarios, const std::vector<TrainWindow>& train,
+                             const std::vector<TrainWindow>& val, const Model& start, const TrainOptions& o,
+                             const TrainCallback& progress) {
+  if (start.material == MaterialKind::Elastic) throw Error("training covers the crowd and fluid materials");
   if (train.empty() || val.empty())
-    throw Error("training needs recordings long enough for windows of " + std::to_string(o.window) +
+    throw Error("training needs recordings long enough for windows of " + format_number(o.window) +
                 " s for both training and validation (got " + std::to_string(train.size()) + " training and " +
                 std::to_string(val.size()) + " validation windows)");
   std::vector<ScenarioDef> windowed;
-  for (const auto& d : data) windowed.push_back(window_scenario(d.scenario, false));
+  for (const auto& s : scenarios) windowed.push_back(window_scenario(s, false));
+  for (const auto* set : {&train, &val})
+    for (const auto& w : *set)
+      if (w.dataset >= windowed.size()) throw Error("a training window names scenario " + std::to_string(w.dataset) + " of " + std::to_string(windowed.size()));
 
   TrainResult res;
   res.train_windows = train.size();
@@ -177,7 +195,8 @@ TrainResult train_model(const std::vector<TrainDataset>& data, const Model& star
   const ParamMap map(model, o.params, o.learn_network);
   std::vector<double> u = map.get(model);
   map.set(model, u);  // clamp the start into bounds the way every later step is
-  Adam adam(u.size(), o.learning_rate);
+  double lr = o.learning_rate;
+  Adam adam(u.size(), lr);
   adam.set_clip_norm(o.clip_norm);
   Rng rng(o.seed);
 
@@ -187,7 +206,7 @@ TrainResult train_model(const std::vector<TrainDataset>& data, const Model& star
     for (const auto& w : val) {
       double l;
       try {
-        l = window_loss(windowed[w.dataset], data[w.dataset].recordings[w.recording], w.frame, m, o, nullptr);
+        l = window_loss(windowed[w.dataset], w, m, o, nullptr);
       } catch (const Error&) {
         return std::numeric_limits<double>::infinity();  // this model breaks a simulation: not a candidate
       }
@@ -202,6 +221,9 @@ TrainResult train_model(const std::vector<TrainDataset>& data, const Model& star
   res.initial_validation = res.best_validation = validation_loss(model);
   res.model = model;
   int since_best = 0;
+  // Full passes over the training windows in a seeded random order, `batch` windows a step.
+  std::vector<size_t> order(train.size());
+  size_t cursor = order.size();
   for (int it = 1; it <= o.iterations; ++it) {
     TrainProgress pr;
     pr.iteration = it;
@@ -209,12 +231,17 @@ TrainResult train_model(const std::vector<TrainDataset>& data, const Model& star
     std::vector<double> g(u.size(), 0);
     double loss_sum = 0;
     int used = 0;
-    for (int b = 0; b < o.batch; ++b) {
-      const TrainWindow& w = train[static_cast<size_t>(rng.next() % train.size())];
+    for (int b = 0; b < o.batch && b < static_cast<int>(train.size()); ++b) {
+      if (cursor == order.size()) {
+        for (size_t i = 0; i < order.size(); ++i) order[i] = i;
+        for (size_t i = order.size(); i > 1; --i) std::swap(order[i - 1], order[static_cast<size_t>(rng.next() % i)]);
+        cursor = 0;
+      }
+      const TrainWindow& w = train[order[cursor++]];
       ModelGradient mg;
       double l;
       try {
-        l = window_loss(windowed[w.dataset], data[w.dataset].recordings[w.recording], w.frame, model, o, &mg);
+        l = window_loss(windowed[w.dataset], w, model, o, &mg);
       } catch (const Error&) {
         ++res.skipped_windows;
         continue;
@@ -248,6 +275,12 @@ TrainResult train_model(const std::vector<TrainDataset>& data, const Model& star
         since_best = 0;
       } else if (++since_best >= o.patience) {
         res.early_stopped = true;
+      } else if (o.lr_decay < 1) {
+        // No improvement: go back to the best point and take smaller steps from there.
+        lr *= o.lr_decay;
+        adam.set_learning_rate(lr);
+        model = res.model;
+        u = map.get(model);
       }
     }
     res.history.push_back(pr);

@@ -32,6 +32,7 @@ struct TrainOptions {
   double validation_fraction = 0.25;  // the last share of every recording's windows
   int eval_every = 5;            // iterations between validation passes
   int patience = 6;              // validation passes without improvement before stopping
+  double lr_decay = 0.5;         // learning rate factor after a validation pass without improvement
   uint64_t seed = 1;             // minibatch sampling
   std::vector<std::string> params;  // scalar parameters to learn; empty: all with gradients
   bool learn_network = true;     // the traction network's weights and biases (crowd material)
@@ -58,20 +59,25 @@ class ParamMap {
 // The scalar parameters WindowGradient differentiates.
 const std::vector<std::string>& differentiable_params();
 
+// One window: the state it starts from and where its people were seen afterwards.
 struct TrainWindow {
-  size_t dataset = 0, recording = 0;
-  long frame = 0;  // the window's first frame (its observed state)
+  size_t dataset = 0;   // index of the scenario (TrainDataset) it was recorded in
+  ObservedState start;  // positions, velocities, walking speeds at the window's start
+  double framerate = 0; // of `seen`
+  // seen[k][i]: position of start.ids[i] at frame k + 1 after the start (NaN: not in the recording).
+  std::vector<std::vector<Vec2>> seen;
 };
 
-// Training and validation windows of the datasets (validation: the last share of each recording).
+// Training and validation windows of the datasets (validation: the last share of each
+// recording; training windows that would overlap it in time are left out).
 void make_windows(const std::vector<TrainDataset>& data, const TrainOptions& o, std::vector<TrainWindow>& train,
                   std::vector<TrainWindow>& validation);
 
 // The trajectory loss of one window under a model (mean squared position error, m^2, over every
-// recorded frame of the window and every person seen at its start), and its gradient when
-// `grad` is given. Returns NaN when the window has nobody to compare.
-double window_loss(const ScenarioDef& windowed, const TrajectorySet& t, long frame, const Model& m,
-                   const TrainOptions& o, ModelGradient* grad);
+// frame of the window and every person placed at its start), and its gradient when `grad` is
+// given. `windowed` is window_scenario(scenario, false). NaN when nobody can be compared.
+double window_loss(const ScenarioDef& windowed, const TrainWindow& w, const Model& m, const TrainOptions& o,
+                   ModelGradient* grad);
 
 struct TrainProgress {
   int iteration = 0;
@@ -91,8 +97,16 @@ struct TrainResult {
   std::vector<TrainProgress> history;
 };
 
-// Throws Error when there are no training or no validation windows.
+using TrainCallback = std::function<void(const TrainProgress&)>;
+
+// Fits `start` on the datasets' windows. Throws Error when there are no training or no
+// validation windows.
 TrainResult train_model(const std::vector<TrainDataset>& data, const Model& start, const TrainOptions& o,
-                        const std::function<void(const TrainProgress&)>& progress = nullptr);
+                        const TrainCallback& progress = nullptr);
+// The same on windows made elsewhere (synthetic data, tests); scenarios[w.dataset] is each
+// window's venue.
+TrainResult train_on_windows(const std::vector<ScenarioDef>& scenarios, const std::vector<TrainWindow>& train,
+                             const std::vector<TrainWindow>& validation, const Model& start, const TrainOptions& o,
+                             const TrainCallback& progress = nullptr);
 
 }  // namespace crowdmpm
