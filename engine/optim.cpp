@@ -33,4 +33,42 @@ double Adam::step(std::vector<double>& params, const std::vector<double>& grad) 
   return norm;
 }
 
+namespace {
+double dot(const std::vector<double>& a, const std::vector<double>& b) {
+  double s = 0;
+  for (size_t i = 0; i < a.size(); ++i) s += a[i] * b[i];
+  return s;
+}
+}  // namespace
+
+std::vector<double> Lbfgs::direction(const std::vector<double>& grad) const {
+  std::vector<double> q = grad;
+  const size_t k = s_.size();
+  std::vector<double> alpha(k);
+  for (size_t i = k; i-- > 0;) {
+    alpha[i] = dot(s_[i], q) / dot(y_[i], s_[i]);
+    for (size_t j = 0; j < q.size(); ++j) q[j] -= alpha[i] * y_[i][j];
+  }
+  const double gamma = k ? dot(s_[k - 1], y_[k - 1]) / dot(y_[k - 1], y_[k - 1]) : 1.0;
+  for (double& x : q) x *= gamma;
+  for (size_t i = 0; i < k; ++i) {
+    const double beta = dot(y_[i], q) / dot(y_[i], s_[i]);
+    for (size_t j = 0; j < q.size(); ++j) q[j] += s_[i][j] * (alpha[i] - beta);
+  }
+  for (double& x : q) x = -x;
+  return q;
+}
+
+void Lbfgs::update(const std::vector<double>& s, const std::vector<double>& y) {
+  if (s.size() != y.size()) throw Error("Lbfgs::update: step and gradient change differ in length");
+  const double sy = dot(s, y);
+  if (!(sy > 1e-12 * std::sqrt(dot(s, s) * dot(y, y)))) return;
+  s_.push_back(s);
+  y_.push_back(y);
+  if (s_.size() > memory_) {
+    s_.erase(s_.begin());
+    y_.erase(y_.begin());
+  }
+}
+
 }  // namespace crowdmpm

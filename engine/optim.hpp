@@ -21,4 +21,23 @@ class Adam {
   long t_ = 0;
 };
 
+// Limited-memory BFGS (Nocedal & Wright, algorithm 7.4): the search direction from the last
+// `memory` curvature pairs. For deterministic (full-batch) losses with ill-conditioned valleys,
+// where Adam crawls along the valley floor.
+class Lbfgs {
+ public:
+  explicit Lbfgs(size_t memory = 8) : memory_(memory) {}
+  // -H grad, the quasi-Newton descent direction (-grad scaled on the first call).
+  std::vector<double> direction(const std::vector<double>& grad) const;
+  // Records a step s = x_new - x_old and the gradient change y; pairs without positive
+  // curvature (s.y <= 0) are skipped.
+  void update(const std::vector<double>& s, const std::vector<double>& y);
+  void reset() { s_.clear(); y_.clear(); }
+  bool empty() const { return s_.empty(); }
+
+ private:
+  size_t memory_;
+  std::vector<std::vector<double>> s_, y_;
+};
+
 }  // namespace crowdmpm

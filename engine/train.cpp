@@ -43,12 +43,18 @@ ParamMap::ParamMap(const Model& m, std::vector<std::string> scalars, bool networ
     for (const auto& s : differentiable_params())
       if (!(s == "tension_scale" && m.material == MaterialKind::Fluid)) scalars_.push_back(s);
   ModelGradient probe;
-  for (const auto& s : scalars_) {
+  for (size_t i = 0; i < scalars_.size(); ++i) {
+    const std::string& s = scalars_[i];
     gradient_of(probe, s);  // throws for parameters without a gradient
     if (s == "tension_scale" && m.material == MaterialKind::Fluid)
       throw Error("the fluid material is symmetric: tension_scale is fixed at 1 and cannot be learned");
+    for (size_t j = 0; j < i; ++j)
+      if (scalars_[j] == s) throw Error("parameter '" + s + "' is listed twice");
     log_.push_back(s != "tension_scale");
+    if (s == "E") e_index_ = static_cast<int>(i);
+    if (s == "gamma") gamma_index_ = static_cast<int>(i);
   }
+  if (e_index_ < 0 || gamma_index_ < 0) e_index_ = gamma_index_ = -1;
   if (network && m.has_traction()) network_size_ = m.traction.parameter_count();
 }
 
@@ -58,6 +64,8 @@ std::vector<double> ParamMap::get(const Model& m) const {
     double p = m.get(scalars_[i]);
     u.push_back(log_[i] ? std::log(std::max(p, log_floor(info_of(scalars_[i])))) : p);
   }
+  // E and gamma together: the first coordinate is log(E gamma), the stiffness at J = 1.
+  if (e_index_ >= 0) u[static_cast<size_t>(e_index_)] += u[static_cast<size_t>(gamma_index_)];
   if (network_size_) {
     std::vector<double> th = m.traction.parameters();
     u.insert(u.end(), th.begin(), th.end());
@@ -65,8 +73,10 @@ std::vector<double> ParamMap::get(const Model& m) const {
   return u;
 }
 
-void ParamMap::set(Model& m, const std::vector<double>& u) const {
-  if (u.size() != size()) throw Error("ParamMap::set: expected " + std::to_string(size()) + " values");
+void ParamMap::set(Model& m, const std::vector<double>& u_in) const {
+  if (u_in.size() != size()) throw Error("ParamMap::set: expected " + std::to_string(size()) + " values");
+  std::vector<double> u = u_in;
+  if (e_index_ >= 0) u[static_cast<size_t>(e_index_)] -= u[static_cast<size_t>(gamma_index_)];
   for (size_t i = 0; i < scalars_.size(); ++i) {
     const ParamInfo& info = info_of(scalars_[i]);
     double p = log_[i] ? std::exp(u[i]) : u[i];
@@ -81,6 +91,9 @@ std::vector<double> ParamMap::gradient(const Model& m, const ModelGradient& g) c
     double gi = gradient_of(g, scalars_[i]);
     d.push_back(log_[i] ? gi * m.get(scalars_[i]) : gi);  // dL/dlog p = p dL/dp
   }
+  // With u_E = log E + log gamma and u_g = log gamma: dL/du_E = dL/dlog E and
+  // dL/du_g = dL/dlog gamma - dL/dlog E.
+  if (e_index_ >= 0) d[static_cast<size_t>(gamma_index_)] -= d[static_cast<size_t>(e_index_)];
   if (network_size_) d.insert(d.end(), g.network.begin(), g.network.end());
   return d;
 }
@@ -224,46 +237,114 @@ TrainResult train_on_windows(const std::vector<ScenarioDef>& scenarios, const st
   // Full passes over the training windows in a seeded random order, `batch` windows a step.
   std::vector<size_t> order(train.size());
   size_t cursor = order.size();
-  for (int it = 1; it <= o.iterations; ++it) {
-    TrainProgress pr;
-    pr.iteration = it;
-    pr.validation_loss = std::numeric_limits<double>::quiet_NaN();
-    std::vector<double> g(u.size(), 0);
+  // Mean loss of some training windows and its gradient in the optimiser's coordinates.
+  auto batch_loss = [&](const Model& m, const std::vector<size_t>& idx, std::vector<double>* g) {
+    if (g) g->assign(u.size(), 0.0);
     double loss_sum = 0;
     int used = 0;
-    for (int b = 0; b < o.batch && b < static_cast<int>(train.size()); ++b) {
-      if (cursor == order.size()) {
-        for (size_t i = 0; i < order.size(); ++i) order[i] = i;
-        for (size_t i = order.size(); i > 1; --i) std::swap(order[i - 1], order[static_cast<size_t>(rng.next() % i)]);
-        cursor = 0;
-      }
-      const TrainWindow& w = train[order[cursor++]];
+    for (size_t i : idx) {
+      const TrainWindow& w = train[i];
       ModelGradient mg;
       double l;
       try {
-        l = window_loss(windowed[w.dataset], w, model, o, &mg);
+        l = window_loss(windowed[w.dataset], w, m, o, g ? &mg : nullptr);
       } catch (const Error&) {
         ++res.skipped_windows;
         continue;
       }
       if (!std::isfinite(l)) continue;
-      std::vector<double> gu = map.gradient(model, mg);
-      bool finite = true;
-      for (double x : gu) finite = finite && std::isfinite(x);
-      if (!finite) {
-        ++res.skipped_windows;
-        continue;
+      if (g) {
+        std::vector<double> gu = map.gradient(m, mg);
+        bool finite = true;
+        for (double x : gu) finite = finite && std::isfinite(x);
+        if (!finite) {
+          ++res.skipped_windows;
+          continue;
+        }
+        for (size_t k = 0; k < gu.size(); ++k) (*g)[k] += gu[k];
       }
-      for (size_t i = 0; i < g.size(); ++i) g[i] += gu[i];
       loss_sum += l;
       ++used;
     }
-    if (used == 0) continue;
-    for (double& x : g) x /= used;
-    pr.train_loss = loss_sum / used;
-    pr.grad_norm = adam.step(u, g);
-    map.set(model, u);
-    u = map.get(model);  // clamped values back into the optimiser's coordinates
+    if (used == 0) return std::numeric_limits<double>::quiet_NaN();
+    if (g)
+      for (double& x : *g) x /= used;
+    return loss_sum / used;
+  };
+  std::vector<size_t> all(train.size());
+  for (size_t i = 0; i < all.size(); ++i) all[i] = i;
+  Lbfgs lbfgs;
+  std::vector<double> g_full;
+  double f_full = o.optimizer == TrainOptions::Optimizer::Lbfgs ? batch_loss(model, all, &g_full) : 0;
+
+  for (int it = 1; it <= o.iterations; ++it) {
+    TrainProgress pr;
+    pr.iteration = it;
+    pr.validation_loss = std::numeric_limits<double>::quiet_NaN();
+    if (o.optimizer == TrainOptions::Optimizer::Adam) {
+      std::vector<size_t> idx;
+      for (int b = 0; b < o.batch && b < static_cast<int>(train.size()); ++b) {
+        if (cursor == order.size()) {
+          for (size_t i = 0; i < order.size(); ++i) order[i] = i;
+          for (size_t i = order.size(); i > 1; --i) std::swap(order[i - 1], order[static_cast<size_t>(rng.next() % i)]);
+          cursor = 0;
+        }
+        idx.push_back(order[cursor++]);
+      }
+      std::vector<double> g;
+      pr.train_loss = batch_loss(model, idx, &g);
+      if (!std::isfinite(pr.train_loss)) continue;
+      pr.grad_norm = adam.step(u, g);
+      map.set(model, u);
+      u = map.get(model);  // clamped values back into the optimiser's coordinates
+    } else {
+      if (!std::isfinite(f_full)) throw Error("training: no training window could be simulated with the starting model");
+      std::vector<double> d = lbfgs.direction(g_full);
+      double slope = 0, gnorm = 0;
+      for (size_t k = 0; k < d.size(); ++k) {
+        slope += d[k] * g_full[k];
+        gnorm += g_full[k] * g_full[k];
+      }
+      pr.grad_norm = std::sqrt(gnorm);
+      if (!(slope < 0)) {  // not a descent direction: restart from the gradient
+        lbfgs.reset();
+        d = lbfgs.direction(g_full);
+        slope = -gnorm;
+      }
+      // The first step is at most 0.1 in the optimiser's coordinates (10% of a positive scalar).
+      double step_len = 0;
+      for (double x : d) step_len += x * x;
+      double alpha = lbfgs.empty() ? std::min(1.0, 0.1 / std::sqrt(step_len)) : 1.0;
+      bool accepted = false;
+      for (int tries = 0; tries < 30 && !accepted; ++tries, alpha *= 0.5) {
+        std::vector<double> u_try = u;
+        for (size_t k = 0; k < u.size(); ++k) u_try[k] += alpha * d[k];
+        Model trial = model;
+        map.set(trial, u_try);
+        u_try = map.get(trial);
+        std::vector<double> g_try;
+        const double f_try = batch_loss(trial, all, &g_try);
+        if (std::isfinite(f_try) && f_try <= f_full + 1e-4 * alpha * slope) {
+          std::vector<double> s(u.size()), y(u.size());
+          for (size_t k = 0; k < u.size(); ++k) {
+            s[k] = u_try[k] - u[k];
+            y[k] = g_try[k] - g_full[k];
+          }
+          lbfgs.update(s, y);
+          u = u_try;
+          model = trial;
+          f_full = f_try;
+          g_full = g_try;
+          accepted = true;
+        }
+      }
+      pr.train_loss = f_full;
+      // A failed line search, or one that had to shrink the step a thousandfold, means the
+      // curvature pairs no longer describe the loss here (it is only piecewise smooth:
+      // contacts begin and end): forget them and go on from the gradient.
+      if (!accepted || alpha < 1e-3) lbfgs.reset();
+      std::fprintf(stderr, "DBG it %d accepted %d alpha %.3g slope %.3e f %.4e\n", it, accepted, alpha * 2, slope, f_full);  // line search failed: forget the curvature, retry from the gradient
+    }
     res.iterations = it;
     if (it % o.eval_every == 0 || it == o.iterations) {
       pr.validation_loss = validation_loss(model);
@@ -275,7 +356,7 @@ TrainResult train_on_windows(const std::vector<ScenarioDef>& scenarios, const st
         since_best = 0;
       } else if (++since_best >= o.patience) {
         res.early_stopped = true;
-      } else if (o.lr_decay < 1) {
+      } else if (o.lr_decay < 1 && o.optimizer == TrainOptions::Optimizer::Adam) {
         // No improvement: go back to the best point and take smaller steps from there.
         lr *= o.lr_decay;
         adam.set_learning_rate(lr);

@@ -25,6 +25,10 @@ struct TrainOptions {
   double velocity_window = 0.5;  // s, as PredictOptions
   double speed_window = 1;       // s, as PredictOptions
   DesiredSpeed desired_speed = DesiredSpeed::Observed;
+  enum class Optimizer { Adam, Lbfgs };
+  // Adam on minibatches (default), or L-BFGS with a backtracking line search on the full batch
+  // of training windows (for small, noise-free problems with ill-conditioned valleys).
+  Optimizer optimizer = Optimizer::Adam;
   int iterations = 120;
   int batch = 4;                 // windows per Adam step
   double learning_rate = 0.03;   // in the optimiser's coordinates (log of positive parameters)
@@ -41,6 +45,10 @@ struct TrainOptions {
 
 // The learnable parameters as one vector in the optimiser's coordinates: log p for the positive
 // scalars, p for tension_scale, the raw network parameters; set() clamps to param_table() bounds.
+// When E and gamma are both learned, E's coordinate is log(E gamma): the stiffness at J = 1,
+// which trajectories determine well, while gamma (the curvature of the stress law) is told
+// apart only by strong compression. In (log E, log gamma) that is a long diagonal valley;
+// in these coordinates it lies along gamma's axis, where Adam's per-coordinate steps follow it.
 class ParamMap {
  public:
   ParamMap(const Model& m, std::vector<std::string> scalars, bool network);
@@ -53,6 +61,7 @@ class ParamMap {
  private:
   std::vector<std::string> scalars_;
   std::vector<char> log_;
+  int e_index_ = -1, gamma_index_ = -1;
   size_t network_size_ = 0;
 };
 
