@@ -103,7 +103,9 @@ const char* kTrainHelp =
     "options:\n"
     "  --out MODEL.json   where to write the learned model; required\n"
     "  --model START      starting model (default: the first scenario's, else built-in);\n"
-    "                     its material (crowd or fluid) is the one learned\n"
+    "                     its kind (crowd, fluid or social_force) is the one learned\n"
+    "  --material KIND    start from the built-in defaults as crowd, fluid or social_force\n"
+    "                     (the social force model is fitted with central differences)\n"
     "  --params LIST      comma-separated scalars to learn (default all with gradients:\n"
     "                     E,gamma,tension_scale,tau,v0_scale,comfort_distance,alignment_time)\n"
     "  --no-network       keep the traction network fixed\n"
@@ -140,6 +142,7 @@ struct Args {
   double duration = -1;
   bool quiet = false, help = false;
   std::string desired_speed = "observed";
+  std::string material;  // train: start from the default parameters of this model kind
   TrainOptions train;
   bool stride_given = false;
 };
@@ -207,6 +210,8 @@ Args parse_args(int argc, char** argv, int first) {
         b = e + 1;
       }
       if (a.train.params.empty()) usage_error("--params needs at least one parameter name");
+    } else if (s == "--material") {
+      a.material = value("--material");
     } else if (s == "--no-network") a.train.learn_network = false;
     else if (s == "--iterations") a.train.iterations = static_cast<int>(parse_long(s, value(s.c_str()), 1, 1000000));
     else if (s == "--batch") a.train.batch = static_cast<int>(parse_long(s, value(s.c_str()), 1, 10000));
@@ -283,7 +288,9 @@ DesiredSpeed desired_speed_of(const Args& a) {
 
 // A model's label in tables: its name and material.
 std::string model_label(const Model& m) {
-  return m.name.empty() ? std::string(material_name(m.material)) : m.name + " (" + material_name(m.material) + ")";
+  const std::string kind = material_name(m.material);
+  if (m.name.empty()) return kind;
+  return m.name.find(kind) == std::string::npos ? m.name + " (" + kind + ")" : m.name;
 }
 
 int cmd_predict(const Args& a) {
@@ -371,7 +378,10 @@ int cmd_train(const Args& a) {
     for (const auto& f : trajs) d.recordings.push_back(TrajectorySet::read(f));
     data.push_back(std::move(d));
   }
-  Model start = !a.model.empty() ? Model::load(a.model) : data[0].scenario.model_or_default();
+  if (!a.model.empty() && !a.material.empty()) usage_error("train takes --model or --material, not both");
+  Model start = !a.model.empty()    ? Model::load(a.model)
+                : !a.material.empty() ? Model::default_of(a.material)
+                                      : data[0].scenario.model_or_default();
   TrainOptions o = a.train;
   if (a.stride_given) o.stride = a.stride;
   o.threads = a.threads;
@@ -389,7 +399,7 @@ int cmd_train(const Args& a) {
     std::fflush(stdout);
   });
   Model m = r.model;
-  m.name = "learned";
+  m.name = std::string("learned ") + material_name(m.material);
   std::string from;
   for (const auto& [scen, trajs] : a.datasets)
     for (const auto& f : trajs) from += (from.empty() ? "" : ", ") + std::filesystem::path(f).filename().string();

@@ -42,7 +42,8 @@ Eigen::Matrix4d local_jacobian(F&& f, const Eigen::Vector4d& at) {
 
 ModelGradient WindowGradient::run(Simulation& sim, int steps, const StateLossGrad& loss_grad) {
   const Model& model = sim.model();
-  if (model.material == MaterialKind::Elastic) throw Error("gradients cover the crowd and fluid materials only");
+  if (model.material == MaterialKind::Elastic || !model.is_continuum())
+    throw Error(std::string("gradients through the simulator cover the crowd and fluid materials, not ") + material_name(model.material));
   const size_t n = sim.world().size();
   const std::vector<EntityId> ids = sim.world().id;
   std::vector<Stored> states;

@@ -378,6 +378,51 @@ void project_point(const StepInputs& in, Vec2& x, Vec2& v) {
   }
 }
 
+double interaction_margin(const Model& m, double comfort) {
+  return m.material == MaterialKind::SocialForce ? std::min(8 * m.params.sf_B, 3.0) : comfort;
+}
+
+void kernel_social_force(const StepInputs& in, const NeighbourGrid& nb, World& w, ThreadPool& pool) {
+  const MaterialParams& P = in.model.params;
+  const double reach_extra = interaction_margin(in.model, 0), area = 1.0 / P.rest_density;
+  pool.parallel_for(w.size(), [&](size_t b, size_t e) {
+    for (size_t p = b; p < e; ++p) {
+      const Vec2 xp = w.x[p], vp = w.v[p];
+      Vec2 force = Vec2::Zero();
+      double virial = 0;
+      nb.for_each_candidate(p, [&](size_t q) {
+        Vec2 r = xp - w.x[q];
+        double d = r.norm();
+        const double rpq = w.radius[p] + w.radius[q];
+        if (d >= rpq + reach_extra) return;
+        if (d < 1e-9) {  // coincident centres: apart along x, the lower id to the left
+          r = Vec2(w.id[q] > w.id[p] ? -1e-9 : 1e-9, 0);
+          d = 1e-9;
+        }
+        const Vec2 n = r / d, t(-n.y(), n.x());
+        const double overlap = std::max(rpq - d, 0.0);
+        Vec2 f = (P.sf_A * std::exp((rpq - d) / P.sf_B) + P.sf_k * overlap) * n;
+        f += P.sf_kappa * overlap * (w.v[q] - vp).dot(t) * t;
+        force += f;
+        virial += f.dot(r);
+      });
+      const double dw = in.geo.sdf(xp);
+      if (dw < w.radius[p] + reach_extra) {
+        const Vec2 nw = in.geo.normal(xp);
+        if (nw.squaredNorm() > 0) {
+          const Vec2 tw(-nw.y(), nw.x());
+          const double overlap = std::max(w.radius[p] - dw, 0.0);
+          force += (P.sf_A * std::exp((w.radius[p] - dw) / P.sf_B) + P.sf_k * overlap) * nw;
+          force -= P.sf_kappa * overlap * vp.dot(tw) * tw;
+        }
+      }
+      w.pair_force[p] = force;
+      w.pair_virial[p] = virial;
+      w.pressure[p] = virial / (2 * area);
+    }
+  });
+}
+
 void kernel_project(const StepInputs& in, World& w, ThreadPool& pool) {
   pool.parallel_for(w.size(), [&](size_t b, size_t e) {
     for (size_t p = b; p < e; ++p) project_point(in, w.x[p], w.v[p]);

@@ -109,6 +109,19 @@ Vec2 desired_direction(const StepInputs& in, const Behaviour& b, const Vec2& x);
 // One agent's drive (a_p, heading); kernel_drive applies it to every agent.
 void drive_point(const StepInputs& in, const Behaviour& beh, int group, const Vec2& x, const Vec2& v, double v0,
                  const Vec2& prev_heading, Vec2& accel, Vec2& heading);
+// How far beyond body contact (r_p + r_q) a pair interacts: the comfort distance c for the
+// continuum materials' pair traction; for the social force, where the exponential repulsion
+// has decayed to e^-8 of its strength (8 B, at most 3 m).
+double interaction_margin(const Model& m, double comfort);
+// Social force (Helbing, Farkas & Vicsek 2000, with body compression and sliding friction), per
+// unit mass: for neighbours q with d = |x_p - x_q|, n = (x_p - x_q)/d, t = (-n_y, n_x),
+// r_pq = r_p + r_q, g(s) = max(s, 0):
+//   f_p += [A exp((r_pq - d)/B) + k g(r_pq - d)] n + kappa g(r_pq - d) ((v_q - v_p) . t) t
+// and from the nearest solid (distance d_w and outward normal n_w from the SDF, t_w its tangent):
+//   f_p += [A exp((r_p - d_w)/B) + k g(r_p - d_w)] n_w - kappa g(r_p - d_w) (v_p . t_w) t_w.
+// Writes pair_force, pair_virial (sum of f_pq . (x_p - x_q) over agents) and the reported
+// pressure (virial / (2 V), V = 1 / rest_density, as for the crowd material).
+void kernel_social_force(const StepInputs& in, const NeighbourGrid& nb, World& w, ThreadPool& pool);
 // One particle's projection out of solids; kernel_project applies it to every particle.
 void project_point(const StepInputs& in, Vec2& x, Vec2& v);
 void kernel_drive(const StepInputs& in, World& w, ThreadPool& pool);

@@ -25,6 +25,10 @@ const std::vector<ParamInfo>& param_table() {
       {"contact_epsilon", &MaterialParams::contact_epsilon, 1e-4, 0.1, "m", false},
       {"wall_clearance", &MaterialParams::wall_clearance, 0, 0.5, "m", false},
       {"alignment_time", &MaterialParams::alignment_time, 1e-3, 1e3, "s", true},
+      {"sf_A", &MaterialParams::sf_A, 0, 1e4, "m/s^2", true},
+      {"sf_B", &MaterialParams::sf_B, 0.01, 1, "m", true},
+      {"sf_k", &MaterialParams::sf_k, 0, 1e5, "1/s^2", true},
+      {"sf_kappa", &MaterialParams::sf_kappa, 0, 1e5, "1/(m s)", true},
   };
   return table;
 }
@@ -34,6 +38,7 @@ const char* material_name(MaterialKind k) {
     case MaterialKind::Crowd: return "crowd";
     case MaterialKind::Fluid: return "fluid";
     case MaterialKind::Elastic: return "elastic";
+    case MaterialKind::SocialForce: return "social_force";
   }
   return "crowd";
 }
@@ -41,6 +46,24 @@ const char* material_name(MaterialKind k) {
 Model Model::default_model() {
   return parse(JsonReader(parse_json_text(kDefaultModelJson, "<built-in default model>"), ""),
                "<built-in default model>");
+}
+
+Model Model::default_of(const std::string& kind) {
+  Model m = default_model();
+  if (kind == "crowd") return m;
+  if (kind == "fluid") {
+    m.material = MaterialKind::Fluid;
+    m.params.tension_scale = 1;
+  } else if (kind == "social_force") {
+    m.material = MaterialKind::SocialForce;
+  } else if (kind == "elastic") {
+    m.material = MaterialKind::Elastic;
+  } else {
+    throw Error("unknown model kind '" + kind + "' (known: crowd, fluid, elastic, social_force)");
+  }
+  m.traction = TractionNet();
+  m.name = "default " + kind;
+  return m;
 }
 
 Model Model::load(const std::string& path) {
@@ -63,8 +86,11 @@ Model Model::parse(const JsonReader& r, const std::string& source) {
   m.source = source;
   m.name = r.string("name", std::string());
   m.description = r.string("description", std::string());
-  std::string kind = r.one_of("material", {"crowd", "fluid", "elastic"}, "crowd");
-  m.material = kind == "fluid" ? MaterialKind::Fluid : kind == "elastic" ? MaterialKind::Elastic : MaterialKind::Crowd;
+  std::string kind = r.one_of("material", {"crowd", "fluid", "elastic", "social_force"}, "crowd");
+  m.material = kind == "fluid"          ? MaterialKind::Fluid
+               : kind == "elastic"      ? MaterialKind::Elastic
+               : kind == "social_force" ? MaterialKind::SocialForce
+                                        : MaterialKind::Crowd;
   if (m.material == MaterialKind::Fluid) m.params.tension_scale = 1;
   if (auto p = r.get("parameters")) {
     p->require_object();
@@ -81,7 +107,7 @@ Model Model::parse(const JsonReader& r, const std::string& source) {
     if (!t) r.fail_at("traction", "is required for material \"crowd\" (a network or {\"constant\": K})");
     m.traction = TractionNet::parse(*t);
   } else if (t) {
-    t->fail(std::string("the ") + kind + " material has no traction network; remove this key");
+    t->fail(std::string("the ") + kind + " model has no traction network; remove this key");
   }
   return m;
 }

@@ -8,7 +8,7 @@
 
 namespace crowdmpm {
 
-enum class MaterialKind { Crowd, Fluid, Elastic };
+enum class MaterialKind { Crowd, Fluid, Elastic, SocialForce };
 
 struct MaterialParams {
   double E = 20;                 // stiffness of the continuum stress
@@ -26,6 +26,11 @@ struct MaterialParams {
   double contact_epsilon = 0.01; // m: smallest gap used in phi(d) = -log((d - 2 r_b)/c)
   double wall_clearance = 0.1;   // m: particle centres are kept at least this far from solids
   double alignment_time = 0.5;   // s: particle velocities relax towards the local grid flow (PIC share dt/this)
+  // social_force model (Helbing, Farkas & Vicsek 2000), per unit mass (their values / 80 kg):
+  double sf_A = 25;              // m/s^2: strength of the exponential repulsion A exp((r_pq - d)/B)
+  double sf_B = 0.08;            // m: its range
+  double sf_k = 1500;            // 1/s^2: body compression k g(r_pq - d)
+  double sf_kappa = 3000;        // 1/(m s): sliding friction kappa g(r_pq - d) dv_t
 };
 
 struct ParamInfo {
@@ -46,11 +51,15 @@ class Model {
   std::string name, description;  // free text, kept through load and save
 
   static Model default_model();
+  // The default model's parameters as another kind (fluid: tension_scale 1; no traction
+  // network outside the crowd material). Throws Error for an unknown name.
+  static Model default_of(const std::string& kind);
   static Model parse(const JsonReader& r, const std::string& source);
   static Model load(const std::string& path);
   json to_json() const;
 
   bool has_traction() const { return material == MaterialKind::Crowd; }
+  bool is_continuum() const { return material != MaterialKind::SocialForce; }  // simulated with MPM
   // Named access for the C ABI and the optimisers; throws Error on unknown names or bad values.
   double get(const std::string& param) const;
   void set(const std::string& param, double value);

@@ -55,7 +55,7 @@ Simulation::Simulation(const ScenarioDef& scenario, const Model& model, int thre
                 " m must be smaller than every comfort distance (smallest: " + format_number(min_c) + " m)");
   max_radius_ = max_r;
   max_comfort_ = max_c;
-  init_neighbours(2 * max_r + max_c);
+  init_neighbours(2 * max_r + interaction_margin(model_, max_c));
   for (const auto& f : scenario_.forces) {
     BodyForce b;
     b.kind = f.kind == ForceDef::Kind::Uniform ? BodyForce::Kind::Uniform
@@ -188,7 +188,8 @@ EntityId Simulation::add_agent(const AgentDef& def) {
     throw Error("agent comfort_distance must be larger than the model's contact_epsilon (" +
                 format_number(model_.params.contact_epsilon) + " m)");
   // Keep the cell lists wide enough for the new agent's reach (r + r_max + c).
-  double reach = 2 * std::max(def.body_radius, max_radius_) + std::max(def.comfort_distance, max_comfort_);
+  double reach = 2 * std::max(def.body_radius, max_radius_) +
+                 interaction_margin(model_, std::max(def.comfort_distance, max_comfort_));
   max_radius_ = std::max(max_radius_, def.body_radius);
   max_comfort_ = std::max(max_comfort_, def.comfort_distance);
   if (reach > neighbours_.range) init_neighbours(reach);
@@ -333,6 +334,10 @@ void Simulation::prepare_derived() {
   StepInputs in{model_, scenario_.geo, navs_, behaviours_, forces_, scenario_.dt};
   kernel_drive(in, world_, pool_);
   neighbours_.build(world_, pool_);
+  if (!model_.is_continuum()) {
+    kernel_social_force(in, neighbours_, world_, pool_);
+    return;
+  }
   kernel_traction(in, neighbours_, world_, pool_);
   kernel_p2g(in, world_, grid_, pool_);  // reported pressure of the initial state
 }
@@ -353,18 +358,24 @@ void Simulation::step() {
     profile_.seconds[part++] += std::chrono::duration<double>(now - t).count();
     t = now;
   };
-  kernel_drive(in, world_, pool_);
-  mark();
-  neighbours_.build(world_, pool_);
-  mark();
-  kernel_traction(in, neighbours_, world_, pool_);
-  mark();
-  kernel_p2g(in, world_, grid_, pool_);
-  mark();
-  kernel_grid_update(in, grid_, pool_);
-  mark();
-  kernel_g2p(in, grid_, world_, pool_);
-  mark();
+  if (model_.is_continuum()) {
+    kernel_drive(in, world_, pool_);
+    mark();
+    neighbours_.build(world_, pool_);
+    mark();
+    kernel_traction(in, neighbours_, world_, pool_);
+    mark();
+    kernel_p2g(in, world_, grid_, pool_);
+    mark();
+    kernel_grid_update(in, grid_, pool_);
+    mark();
+    kernel_g2p(in, grid_, world_, pool_);
+    mark();
+  } else {
+    step_social_force(in);
+    mark();    // profiled as drive; the neighbour, traction and grid parts stay empty
+    part = 6;
+  }
   kernel_project(in, world_, pool_);
   mark();
   ++steps_;
@@ -374,6 +385,30 @@ void Simulation::step() {
   spawn_sources();
   mark();
   if (profiling_) ++profile_.steps;
+}
+
+void Simulation::step_social_force(const StepInputs& in) {
+  // Contacts are stiff (k, kappa): semi-implicit Euler in substeps of at most 2.5 ms, the
+  // neighbour lists of the step start (their cells are at least the interaction reach wide,
+  // and nobody moves further than max_speed * dt <= cell_size / 4 in a step).
+  const MaterialParams& P = model_.params;
+  const int sub = std::max(1, static_cast<int>(std::ceil(scenario_.dt / 0.0025 - 1e-9)));
+  const double h = scenario_.dt / sub;
+  neighbours_.build(world_, pool_);
+  for (int k = 0; k < sub; ++k) {
+    kernel_drive(in, world_, pool_);
+    kernel_social_force(in, neighbours_, world_, pool_);
+    World& w = world_;
+    pool_.parallel_for(w.size(), [&](size_t b, size_t e) {
+      for (size_t p = b; p < e; ++p) {
+        Vec2 v = w.v[p] + h * (w.accel[p] + w.pair_force[p]);
+        const double speed = v.norm();
+        if (speed > P.max_speed) v *= P.max_speed / speed;
+        w.v[p] = v;
+        w.x[p] += h * v;
+      }
+    });
+  }
 }
 
 PairStats Simulation::pair_stats() {

@@ -88,6 +88,7 @@ class Simulation {
   void retire_at_exits();
   void check_finite();
   void prepare_derived();  // drive, traction and P2G on the current state, so pressure is defined
+  void step_social_force(const StepInputs& in);  // the social_force model's motion (no grid)
   void init_neighbours(double reach);
   AgentDef agent_template(const GroupDef& g, int group_index) const;
 

@@ -15,6 +15,11 @@ const std::vector<std::string>& differentiable_params() {
   return names;
 }
 
+const std::vector<std::string>& social_force_params() {
+  static const std::vector<std::string> names = {"tau", "v0_scale", "sf_A", "sf_B", "sf_k", "sf_kappa"};
+  return names;
+}
+
 namespace {
 double gradient_of(const ModelGradient& g, const std::string& name) {
   if (name == "E") return g.E;
@@ -40,12 +45,16 @@ double log_floor(const ParamInfo& p) { return std::max(p.lo, 1e-6); }
 
 ParamMap::ParamMap(const Model& m, std::vector<std::string> scalars, bool network) : scalars_(std::move(scalars)) {
   if (scalars_.empty())
-    for (const auto& s : differentiable_params())
+    for (const auto& s : m.is_continuum() ? differentiable_params() : social_force_params())
       if (!(s == "tension_scale" && m.material == MaterialKind::Fluid)) scalars_.push_back(s);
   ModelGradient probe;
   for (size_t i = 0; i < scalars_.size(); ++i) {
     const std::string& s = scalars_[i];
-    gradient_of(probe, s);  // throws for parameters without a gradient
+    if (m.is_continuum()) {
+      gradient_of(probe, s);  // throws for parameters without a gradient
+    } else if (std::find(social_force_params().begin(), social_force_params().end(), s) == social_force_params().end()) {
+      throw Error("parameter '" + s + "' is not learnable for the social_force model (learnable: tau, v0_scale, sf_A, sf_B, sf_k, sf_kappa)");
+    }
     if (s == "tension_scale" && m.material == MaterialKind::Fluid)
       throw Error("the fluid material is symmetric: tension_scale is fixed at 1 and cannot be learned");
     for (size_t j = 0; j < i; ++j)
@@ -190,7 +199,7 @@ TrainResult train_model(const std::vector<TrainDataset>& data, const Model& star
 TrainResult train_on_windows(const std::vector<ScenarioDef>& scenarios, const std::vector<TrainWindow>& train,
                              const std::vector<TrainWindow>& val, const Model& start, const TrainOptions& o,
                              const TrainCallback& progress) {
-  if (start.material == MaterialKind::Elastic) throw Error("training covers the crowd and fluid materials");
+  if (start.material == MaterialKind::Elastic) throw Error("training covers the crowd, fluid and social_force models, not elastic");
   if (train.empty() || val.empty())
     throw Error("training needs recordings long enough for windows of " + format_number(o.window) +
                 " s for both training and validation (got " + std::to_string(train.size()) + " training and " +
@@ -246,15 +255,36 @@ TrainResult train_on_windows(const std::vector<ScenarioDef>& scenarios, const st
       const TrainWindow& w = train[i];
       ModelGradient mg;
       double l;
+      std::vector<double> gu;
       try {
-        l = window_loss(windowed[w.dataset], w, m, o, g ? &mg : nullptr);
+        l = window_loss(windowed[w.dataset], w, m, o, g && m.is_continuum() ? &mg : nullptr);
+        if (g && std::isfinite(l)) {
+          if (m.is_continuum()) {
+            gu = map.gradient(m, mg);
+          } else {
+            // The social force model has no adjoint here: central differences in the
+            // optimiser's coordinates (a few scalars; each costs two forward runs).
+            const std::vector<double> u0 = map.get(m);
+            const double h = 3e-3;
+            for (size_t k = 0; k < u0.size(); ++k) {
+              double side[2];
+              for (int sgn = 0; sgn < 2; ++sgn) {
+                std::vector<double> uk = u0;
+                uk[k] += sgn ? -h : h;
+                Model mk = m;
+                map.set(mk, uk);
+                side[sgn] = window_loss(windowed[w.dataset], w, mk, o, nullptr);
+              }
+              gu.push_back((side[0] - side[1]) / (2 * h));
+            }
+          }
+        }
       } catch (const Error&) {
         ++res.skipped_windows;
         continue;
       }
       if (!std::isfinite(l)) continue;
       if (g) {
-        std::vector<double> gu = map.gradient(m, mg);
         bool finite = true;
         for (double x : gu) finite = finite && std::isfinite(x);
         if (!finite) {

@@ -38,7 +38,7 @@ struct TrainOptions {
   int patience = 6;              // validation passes without improvement before stopping
   double lr_decay = 0.5;         // learning rate factor after a validation pass without improvement
   uint64_t seed = 1;             // minibatch sampling
-  std::vector<std::string> params;  // scalar parameters to learn; empty: all with gradients
+  std::vector<std::string> params;  // scalar parameters to learn; empty: all the model kind has
   bool learn_network = true;     // the traction network's weights and biases (crowd material)
   int threads = 1;
 };
@@ -65,8 +65,10 @@ class ParamMap {
   size_t network_size_ = 0;
 };
 
-// The scalar parameters WindowGradient differentiates.
+// The scalar parameters WindowGradient differentiates (crowd and fluid materials).
 const std::vector<std::string>& differentiable_params();
+// The social_force model's learnable scalars (fitted with central-difference gradients).
+const std::vector<std::string>& social_force_params();
 
 // One window: the state it starts from and where its people were seen afterwards.
 struct TrainWindow {
