@@ -107,7 +107,7 @@ Model Model::parse(const JsonReader& r, const std::string& source) {
     if (!t) r.fail_at("traction", "is required for material \"crowd\" (a network or {\"constant\": K})");
     m.traction = TractionNet::parse(*t);
   } else if (t) {
-    t->fail(std::string("the ") + kind + " model has no traction network; remove this key");
+    t->fail(std::string("the ") + kind + " material has no traction network; remove this key");
   }
   return m;
 }
