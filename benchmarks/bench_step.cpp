@@ -3,7 +3,7 @@
 // directions. Prints one CSV row (see benchmarks/README.md for recorded results).
 //
 //   bench_step [--agents N] [--density D | --spacing S] [--threads T] [--steps S] [--warmup W]
-//              [--scenario FILE] [--header] [--profile] [--cost-model] [--backward]
+//              [--scenario FILE] [--header] [--profile] [--cost-model] [--backward [--checkpoint K]]
 // The default scene is a hexagonal lattice (rows walking east and west) at --density persons/m²
 // or with --spacing metres between neighbours (0.6 m is the peers' benchmark, 3.2 /m²).
 // --scenario runs a scenario file instead (e.g. scenarios/drill.json); agent-steps then count
@@ -33,6 +33,7 @@ int main(int argc, char** argv) {
   std::string scenario_file;
   int threads = 1;
   bool header = false, profile = false, cost_model = false, backward = false;
+  int checkpoint = 0;
   for (int i = 1; i < argc; ++i) {
     std::string a = argv[i];
     auto next = [&]() -> const char* {
@@ -50,6 +51,7 @@ int main(int argc, char** argv) {
     else if (a == "--profile") profile = true;
     else if (a == "--cost-model") profile = cost_model = true;
     else if (a == "--backward") backward = true;
+    else if (a == "--checkpoint") checkpoint = std::atoi(next());
     else { std::fprintf(stderr, "unknown option %s\n", a.c_str()); return 2; }
   }
   if (spacing > 0) density = 2 / (std::sqrt(3.0) * spacing * spacing);
@@ -112,16 +114,18 @@ int main(int argc, char** argv) {
     sim.run_steps(steps);
     const double forward = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     reset();
-    WindowGradient wg;
+    WindowGradient wg(checkpoint);
     t0 = std::chrono::steady_clock::now();
     ModelGradient g = wg.run(sim, static_cast<int>(steps), [](int, const World& w, std::vector<Vec2>& d, std::vector<Vec2>&) {
       for (size_t p = 0; p < w.size(); ++p) d[p] = w.x[p];  // gradient of 0.5 |x|^2
       return true;
     });
     const double both = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    std::printf("backward,agents=%ld,steps=%ld,threads=%d,forward_s=%.3f,forward_with_storage_and_backward_s=%.3f,"
-                "backward_over_forward=%.2f,stored_bytes_per_agent_step=%zu,dE=%.4g\n",
-                agents, steps, threads, forward, both, (both - forward) / forward, wg.stored_bytes_per_agent_step(), g.E);
+    std::printf("backward,agents=%ld,steps=%ld,threads=%d,checkpoint_every=%d,forward_s=%.3f,"
+                "forward_with_storage_and_backward_s=%.3f,backward_over_forward=%.2f,stored_bytes_per_agent_step=%zu,"
+                "peak_stored_steps=%zu,dE=%.4g\n",
+                agents, steps, threads, checkpoint, forward, both, (both - forward) / forward, wg.stored_bytes_per_agent_step(),
+                wg.peak_stored_steps(), g.E);
     return 0;
   }
   sim.set_profiling(profile);

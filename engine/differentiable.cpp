@@ -46,16 +46,30 @@ ModelGradient WindowGradient::run(Simulation& sim, int steps, const StateLossGra
     throw Error(std::string("gradients through the simulator cover the crowd and fluid materials, not ") + material_name(model.material));
   const size_t n = sim.world().size();
   const std::vector<EntityId> ids = sim.world().id;
-  std::vector<Stored> states;
+  // Segments of K steps: without checkpointing one segment whose states the forward pass keeps;
+  // with it, only each segment's first state is kept and the backward pass runs the segment
+  // forward again (one more forward pass in all) to get its states back.
+  const int K = checkpoint_every_ > 0 && checkpoint_every_ < steps ? checkpoint_every_ : std::max(steps, 1);
+  const bool checkpointing = K < steps;
+  std::vector<Stored> states, checkpoints;
   std::vector<std::vector<Vec2>> loss_x(static_cast<size_t>(steps) + 1), loss_v(static_cast<size_t>(steps) + 1);
-  states.reserve(static_cast<size_t>(steps));
-  for (int k = 0; k < steps; ++k) {
-    states.push_back(store(sim.world()));
+  auto step_and_record = [&](std::vector<Stored>& into) {
+    into.push_back(store(sim.world()));
     sim.step();
     // The drive and traction of this step are still in the world's arrays (agents fixed).
-    states.back().accel = sim.world().accel;
-    states.back().force = sim.world().pair_force;
-    states.back().heading_used = sim.world().heading;
+    into.back().accel = sim.world().accel;
+    into.back().force = sim.world().pair_force;
+    into.back().heading_used = sim.world().heading;
+  };
+  peak_stored_steps_ = 0;
+  if (!checkpointing) states.reserve(static_cast<size_t>(steps));
+  for (int k = 0; k < steps; ++k) {
+    if (checkpointing) {
+      if (k % K == 0) checkpoints.push_back(store(sim.world()));
+      sim.step();
+    } else {
+      step_and_record(states);
+    }
     if (sim.world().size() != n || sim.world().id != ids)
       throw Error("an agent entered or left the world during the gradient window (step " + std::to_string(k + 1) +
                   "); gradients need a fixed set of agents");
@@ -65,6 +79,7 @@ ModelGradient WindowGradient::run(Simulation& sim, int steps, const StateLossGra
       loss_v[static_cast<size_t>(k) + 1] = std::move(gv);
     }
   }
+  const Stored final_state = checkpointing ? store(sim.world()) : Stored{};
   ModelGradient out;
   out.network.assign(model.traction.parameter_count(), 0);
   std::vector<Vec2> xb(n, Vec2::Zero()), vb(n, Vec2::Zero());
@@ -82,6 +97,21 @@ ModelGradient WindowGradient::run(Simulation& sim, int steps, const StateLossGra
   TransferAdjoint xadj;
   const MaterialParams& P = model.params;
   for (int k = steps - 1; k >= 0; --k) {
+    if (checkpointing && (k == steps - 1 || k % K == K - 1)) {
+      // Entering segment k / K from its end: run it forward again from its checkpoint.
+      const int seg = k / K;
+      World& sw = sim.world();
+      const Stored& c = checkpoints[static_cast<size_t>(seg)];
+      sw.x = c.x;
+      sw.v = c.v;
+      sw.C = c.C;
+      sw.J = c.J;
+      sw.heading = c.heading;
+      states.clear();
+      for (int j = seg * K; j <= k; ++j) step_and_record(states);
+    }
+    peak_stored_steps_ = std::max(peak_stored_steps_, states.size() + checkpoints.size());
+    const Stored& st = states[static_cast<size_t>(checkpointing ? k % K : k)];
     if (!loss_x[static_cast<size_t>(k) + 1].empty())
       for (size_t p = 0; p < n; ++p) {
         xb[p] += loss_x[static_cast<size_t>(k) + 1][p];
@@ -89,7 +119,7 @@ ModelGradient WindowGradient::run(Simulation& sim, int steps, const StateLossGra
       }
     // Step k's state with its stored drive and traction; neighbour lists are rebuilt, the
     // transfer adjoint recomputes the grid.
-    restore(w, states[static_cast<size_t>(k)]);
+    restore(w, st);
     nb.build(w, pool);
     // Transfer adjoint, with the projection's adjoint applied per particle at the state after
     // G2P (a local Jacobian of (x, v) -> (x', v') where the projection acts; identity elsewhere).
@@ -130,7 +160,7 @@ ModelGradient WindowGradient::run(Simulation& sim, int steps, const StateLossGra
       // field and the behaviours are pointwise); the acceleration's v-dependence is exact.
       auto drive_x = [&](const Vec2& x) {
         Vec2 a, h;
-        drive_point(in, beh, w.group[p], x, w.v[p], w.v0[p], states[static_cast<size_t>(k)].heading[p], a, h);
+        drive_point(in, beh, w.group[p], x, w.v[p], w.v0[p], st.heading[p], a, h);
         return std::make_pair(a, h);
       };
       Vec2 gx = Vec2::Zero();
@@ -164,6 +194,14 @@ ModelGradient WindowGradient::run(Simulation& sim, int steps, const StateLossGra
       Cb[p] = xadj.C[p];
       Jb[p] = xadj.J[p];
     }
+  }
+  if (checkpointing) {  // leave the simulation at the end of the window, as without checkpoints
+    World& sw = sim.world();
+    sw.x = final_state.x;
+    sw.v = final_state.v;
+    sw.C = final_state.C;
+    sw.J = final_state.J;
+    sw.heading = final_state.heading;
   }
   out.x0 = xb;
   out.v0 = vb;

@@ -25,9 +25,20 @@ using StateLossGrad = std::function<bool(int step, const World& w, std::vector<V
 
 class WindowGradient {
  public:
-  // Runs `steps` steps of `sim` forward (it advances), recording states, then the backward pass.
+  // Checkpointing for long windows: keep the state of every K-th step only and run each
+  // segment of K steps forward again in the backward pass (one extra forward pass; memory for
+  // steps / K + K states instead of steps). 0 (default): no checkpoints, every state kept.
+  explicit WindowGradient(int checkpoint_every = 0) : checkpoint_every_(checkpoint_every) {}
+  // Runs `steps` steps of `sim` forward (it advances and ends at the window's last state),
+  // recording states, then the backward pass.
   ModelGradient run(Simulation& sim, int steps, const StateLossGrad& loss_grad);
   size_t stored_bytes_per_agent_step() const { return 6 * sizeof(Vec2) + sizeof(Mat2) + sizeof(double); }
+  // Most step states held at once during the last run (checkpoints included).
+  size_t peak_stored_steps() const { return peak_stored_steps_; }
+
+ private:
+  int checkpoint_every_ = 0;
+  size_t peak_stored_steps_ = 0;
 };
 
 }  // namespace crowdmpm

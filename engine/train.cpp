@@ -178,7 +178,10 @@ double window_loss(const ScenarioDef& windowed, const TrainWindow& tw, const Mod
     }
     return loss;
   }
-  WindowGradient wg;
+  int every = o.checkpoint_every;
+  if (every <= 0 && static_cast<double>(steps) * static_cast<double>(n) * static_cast<double>(WindowGradient().stored_bytes_per_agent_step()) > o.max_stored_bytes)
+    every = static_cast<int>(std::ceil(std::sqrt(static_cast<double>(steps))));
+  WindowGradient wg(every);
   *grad = wg.run(sim, steps, [&](int k, const World& w, std::vector<Vec2>& dx, std::vector<Vec2>&) {
     if (next >= target.steps.size() || target.steps[next] != k) return false;
     trajectory_loss_at(w.x, target.targets[next++], weight, loss, &dx);

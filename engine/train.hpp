@@ -41,6 +41,10 @@ struct TrainOptions {
   std::vector<std::string> params;  // scalar parameters to learn; empty: all the model kind has
   bool learn_network = true;     // the traction network's weights and biases (crowd material)
   int threads = 1;
+  // Gradient checkpoints every this many steps (WindowGradient); 0: only when a window's stored
+  // states would pass max_stored_bytes, then every ceil(sqrt(steps)) steps.
+  int checkpoint_every = 0;
+  double max_stored_bytes = 512.0 * 1024 * 1024;
 };
 
 // The learnable parameters as one vector in the optimiser's coordinates: log p for the positive
