@@ -370,6 +370,10 @@ int cmd_train(const Args& a) {
   if (a.out.empty()) usage_error("train needs --out MODEL.json");
   if (!a.positional.empty()) usage_error("train takes no positional arguments (got '" + a.positional[0] + "')");
   if (a.models.size() > 1) usage_error("train takes one --model (the starting point)");
+  {
+    const std::filesystem::path dir = std::filesystem::absolute(a.out).parent_path();
+    if (!std::filesystem::is_directory(dir)) throw Error("cannot write " + a.out + ": folder " + dir.string() + " does not exist");
+  }
   std::vector<TrainDataset> data;
   for (const auto& [scen, trajs] : a.datasets) {
     if (scen.empty()) usage_error("--trajectories must follow the --scenario they were recorded in");

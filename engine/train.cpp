@@ -36,7 +36,9 @@ double gradient_of(const ModelGradient& g, const std::string& name) {
 const ParamInfo& info_of(const std::string& name) {
   for (const auto& p : param_table())
     if (name == p.name) return p;
-  throw Error("unknown model parameter '" + name + "'");
+  std::string known;
+  for (const auto& p : param_table()) known += (known.empty() ? "" : ", ") + std::string(p.name);
+  throw Error("unknown model parameter '" + name + "' (known: " + known + ")");
 }
 
 // Smallest value a log-coordinate parameter is clamped to.
@@ -50,6 +52,7 @@ ParamMap::ParamMap(const Model& m, std::vector<std::string> scalars, bool networ
   ModelGradient probe;
   for (size_t i = 0; i < scalars_.size(); ++i) {
     const std::string& s = scalars_[i];
+    info_of(s);  // throws for unknown names
     if (m.is_continuum()) {
       gradient_of(probe, s);  // throws for parameters without a gradient
     } else if (std::find(social_force_params().begin(), social_force_params().end(), s) == social_force_params().end()) {
