@@ -65,9 +65,11 @@ const char* kPredictHelp =
     "\n"
     "Takes the recorded state (positions; velocities over the last 0.5 s) at window starts\n"
     "every --stride seconds after the first --observe seconds, rolls it forward --horizon\n"
-    "seconds with constant velocity and with the crowd model in the scenario's venue, and\n"
+    "seconds with constant velocity, the untrained default model and every --model given, in\n"
+    "the scenario's venue, and\n"
     "prints average and final displacement errors (ADE/FDE, m) at every whole second, and the\n"
-    "RMS error of the grid velocity field (m/s) at the horizon.\n"
+    "grid velocity error at the horizon (m/s: per window, the RMS over grid nodes of the\n"
+    "difference of predicted and recorded velocity fields; averaged over windows).\n"
     "People are compared only while both the recording and the prediction have them.\n"
     "\n"
     "options:\n"
@@ -106,14 +108,18 @@ const char* kTrainHelp =
     "                     its kind (crowd, fluid or social_force) is the one learned\n"
     "  --material KIND    start from the built-in defaults as crowd, fluid or social_force\n"
     "                     (the social force model is fitted with central differences)\n"
-    "  --params LIST      comma-separated scalars to learn (default all with gradients:\n"
-    "                     E,gamma,tension_scale,tau,v0_scale,comfort_distance,alignment_time)\n"
+    "  --params LIST      comma-separated scalars to learn (default: all the kind has; crowd:\n"
+    "                     E,gamma,tension_scale,tau,v0_scale,comfort_distance,alignment_time;\n"
+    "                     fluid: the same without tension_scale; social_force:\n"
+    "                     tau,v0_scale,sf_A,sf_B,sf_k,sf_kappa)\n"
     "  --no-network       keep the traction network fixed\n"
     "  --window S         seconds per window (default 2)\n"
     "  --stride S         seconds between windows (default 1)\n"
     "  --iterations N     Adam steps at most (default 120)\n"
     "  --batch N          windows per step (default 4)\n"
-    "  --lr X             learning rate, in log units for positive scalars (default 0.03)\n"
+    "  --lr X             learning rate, in log units for positive scalars (default 0.03;\n"
+    "                     halved, back at the best point, after a validation pass without\n"
+    "                     improvement)\n"
     "  --clip X           gradient-norm clipping (default 1; 0 off)\n"
     "  --validation F     held-out share of every recording (default 0.25)\n"
     "  --eval-every N     iterations between validation passes (default 5)\n"
@@ -296,7 +302,12 @@ std::string model_label(const Model& m) {
 int cmd_predict(const Args& a) {
   if (a.help) { std::fputs(kPredictHelp, stdout); return 0; }
   if (a.scenario.empty() || a.trajectories.empty()) usage_error("predict needs --scenario and --trajectories");
-  if (a.datasets.size() > 1 || a.datasets[0].second.size() > 1) usage_error("predict takes one --scenario and one --trajectories file");
+  size_t n_scen = 0, n_traj = 0;  // in any order
+  for (const auto& [scen, trajs] : a.datasets) {
+    n_scen += scen.empty() ? 0 : 1;
+    n_traj += trajs.size();
+  }
+  if (n_scen > 1 || n_traj > 1) usage_error("predict takes one --scenario and one --trajectories file");
   if (!a.positional.empty()) usage_error("predict takes no positional arguments (got '" + a.positional[0] + "')");
   ScenarioDef s = ScenarioDef::load(a.scenario);
   std::vector<Model> models = {s.model_or_default()};
@@ -312,7 +323,7 @@ int cmd_predict(const Args& a) {
   if (o.observe + o.horizon > t.duration())
     usage_error("--observe + --horizon (" + format_number(o.observe + o.horizon) + " s) exceed the recording (" +
                 format_number(t.duration()) + " s)");
-  const WindowOptions wo{a.threads, desired_speed_of(a), true};
+  const WindowOptions wo{a.threads, desired_speed_of(a)};
   Grid grid;
   grid.init(s.geo, s.cell_size);
   std::vector<PredictionReport> reports = {evaluate_predictor("constant velocity", t, o, constant_velocity_predictor(), &grid)};

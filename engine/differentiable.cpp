@@ -52,6 +52,7 @@ ModelGradient WindowGradient::run(Simulation& sim, int steps, const StateLossGra
   const int K = checkpoint_every_ > 0 && checkpoint_every_ < steps ? checkpoint_every_ : std::max(steps, 1);
   const bool checkpointing = K < steps;
   std::vector<Stored> states, checkpoints;
+  std::vector<Simulation::Clock> checkpoint_clocks;
   std::vector<std::vector<Vec2>> loss_x(static_cast<size_t>(steps) + 1), loss_v(static_cast<size_t>(steps) + 1);
   auto step_and_record = [&](std::vector<Stored>& into) {
     into.push_back(store(sim.world()));
@@ -65,7 +66,10 @@ ModelGradient WindowGradient::run(Simulation& sim, int steps, const StateLossGra
   if (!checkpointing) states.reserve(static_cast<size_t>(steps));
   for (int k = 0; k < steps; ++k) {
     if (checkpointing) {
-      if (k % K == 0) checkpoints.push_back(store(sim.world()));
+      if (k % K == 0) {
+        checkpoints.push_back(store(sim.world()));
+        checkpoint_clocks.push_back(sim.clock());
+      }
       sim.step();
     } else {
       step_and_record(states);
@@ -80,6 +84,7 @@ ModelGradient WindowGradient::run(Simulation& sim, int steps, const StateLossGra
     }
   }
   const Stored final_state = checkpointing ? store(sim.world()) : Stored{};
+  const Simulation::Clock final_clock = sim.clock();
   ModelGradient out;
   out.network.assign(model.traction.parameter_count(), 0);
   std::vector<Vec2> xb(n, Vec2::Zero()), vb(n, Vec2::Zero());
@@ -107,8 +112,14 @@ ModelGradient WindowGradient::run(Simulation& sim, int steps, const StateLossGra
       sw.C = c.C;
       sw.J = c.J;
       sw.heading = c.heading;
+      sim.set_clock(checkpoint_clocks[static_cast<size_t>(seg)]);
       states.clear();
-      for (int j = seg * K; j <= k; ++j) step_and_record(states);
+      for (int j = seg * K; j <= k; ++j) {
+        step_and_record(states);
+        if (sw.size() != n || sw.id != ids)
+          throw Error("an agent entered or left the world while the gradient window was run again from a checkpoint (step " +
+                      std::to_string(j + 1) + ")");
+      }
     }
     peak_stored_steps_ = std::max(peak_stored_steps_, states.size() + checkpoints.size());
     const Stored& st = states[static_cast<size_t>(checkpointing ? k % K : k)];
@@ -196,6 +207,7 @@ ModelGradient WindowGradient::run(Simulation& sim, int steps, const StateLossGra
     }
   }
   if (checkpointing) {  // leave the simulation at the end of the window, as without checkpoints
+    sim.set_clock(final_clock);
     World& sw = sim.world();
     sw.x = final_state.x;
     sw.v = final_state.v;

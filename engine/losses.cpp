@@ -41,9 +41,12 @@ void weight_derivatives(double f, double d[3]) {
   d[2] = f - 0.5;
 }
 
-// Calls fn(node, w, dw/dx) for the 9 nodes of x's stencil.
+// Calls fn(node, w, dw/dx) for the 9 nodes of x's stencil; nothing for a point whose stencil
+// does not fit on the grid (make_stencil would clamp it, and its weights mean nothing there).
 template <class F>
 void for_stencil(const Vec2& origin, double dx, int nx, int ny, const Vec2& x, F&& fn) {
+  const double bx = std::floor((x.x() - origin.x()) / dx - 0.5), by = std::floor((x.y() - origin.y()) / dx - 0.5);
+  if (!(bx >= 0 && by >= 0 && bx <= nx - 3 && by <= ny - 3)) return;
   const Stencil s = make_stencil(origin, dx, nx, ny, x);
   double dwx[3], dwy[3];
   weight_derivatives(s.fx, dwx);

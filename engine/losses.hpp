@@ -38,7 +38,8 @@ struct GridVelocityField {
 };
 
 // The particles' mass-weighted grid velocity: M_i = sum_p w_ip m, P_i = sum_p w_ip m v_p,
-// velocity P_i / M_i where M_i >= min_mass (mask 1 there, 0 elsewhere).
+// velocity P_i / M_i where M_i >= min_mass (mask 1 there, 0 elsewhere). Points whose 3x3
+// stencil does not fit on the grid (outside the domain) are left out, here and in the loss.
 GridVelocityField grid_velocity_of(const std::vector<Vec2>& x, const std::vector<Vec2>& v, double mass,
                                    const Grid& shape, double min_mass);
 

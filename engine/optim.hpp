@@ -27,7 +27,7 @@ class Adam {
 class Lbfgs {
  public:
   explicit Lbfgs(size_t memory = 8) : memory_(memory) {}
-  // -H grad, the quasi-Newton descent direction (-grad scaled on the first call).
+  // -H grad, the quasi-Newton descent direction (-grad itself while no pair is stored).
   std::vector<double> direction(const std::vector<double>& grad) const;
   // Records a step s = x_new - x_old and the gradient change y; pairs without positive
   // curvature (s.y <= 0) are skipped.

@@ -181,7 +181,11 @@ WindowSim start_window(const ScenarioDef& sc, const Model& model, const Observed
     a.velocity = s.v[i];
     a.body_radius = std::clamp(0.5 * nearest[i], 0.05, model.params.body_radius);
     a.comfort_distance = model.params.comfort_distance;
-    a.desired_speed = o.desired_speed == DesiredSpeed::Observed && i < s.speed.size() ? s.speed[i] : sc.groups[0].desired_speed;
+    // An observed speed beyond what the model allows (a tracking glitch) is clamped.
+    a.desired_speed = o.desired_speed == DesiredSpeed::Observed && i < s.speed.size()
+                          ? std::clamp(s.speed[i], 0.0, std::min(12.0, model.params.max_speed))
+                          : sc.groups[0].desired_speed;
+    if (!std::isfinite(a.desired_speed)) a.desired_speed = 0;
     a.behaviour = 1;  // the first group's behaviour
     a.group = 0;
     ws.ids.push_back(sim.geo_ok(x) ? sim.add_agent(a) : 0);

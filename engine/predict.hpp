@@ -30,7 +30,7 @@ struct HorizonError {
   double ade = 0;      // mean displacement error over (agent, time <= horizon), m
   double fde = 0;      // mean displacement error at the horizon, m
   long samples = 0;    // agents compared at the horizon
-  double grid_velocity_rms = 0;  // m/s: RMS of (predicted - recorded) grid velocity at the horizon, NaN if none
+  double grid_velocity_rms = 0;  // m/s: per window the RMS over nodes of (predicted - recorded) grid velocity at this time, averaged over windows; NaN if none
 };
 
 struct PredictionReport {
@@ -56,12 +56,11 @@ enum class DesiredSpeed { Scenario, Observed };
 struct WindowOptions {
   int threads = 1;
   DesiredSpeed desired_speed = DesiredSpeed::Observed;
-  // false: exits become goals of the same shape (nobody leaves, so the set of agents stays
-  // fixed, as gradients need; training masks people once the recording loses them).
-  bool keep_exits = true;
 };
 
 // A scenario ready to take observed agents: its groups and sources emptied, no time limit.
+// keep_exits false: exits become goals of the same shape (nobody leaves, so the set of agents
+// stays fixed, as gradients need; training masks people once the recording loses them).
 ScenarioDef window_scenario(const ScenarioDef& scenario, bool keep_exits);
 
 // A simulation started from an observed state: the observed agents placed (moved out of solids

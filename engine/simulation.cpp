@@ -325,6 +325,9 @@ void Simulation::spawn_sources() {
 }
 
 void Simulation::init_neighbours(double reach) {
+  // The social force keeps a step's neighbour lists through its substeps: pairs may close by
+  // up to 2 max_speed dt meanwhile, so the lists reach that much further.
+  if (!model_.is_continuum()) reach += 2 * model_.params.max_speed * scenario_.dt;
   // Bound the number of cells (huge venues): larger cells cost time, not correctness.
   const Vec2 ext = scenario_.geo.hi - scenario_.geo.lo;
   neighbours_.init(scenario_.geo, reach, std::sqrt(ext.x() * ext.y() / 2e7));
@@ -388,9 +391,9 @@ void Simulation::step() {
 }
 
 void Simulation::step_social_force(const StepInputs& in) {
-  // Contacts are stiff (k, kappa): semi-implicit Euler in substeps of at most 2.5 ms, the
-  // neighbour lists of the step start (their cells are at least the interaction reach wide,
-  // and nobody moves further than max_speed * dt <= cell_size / 4 in a step).
+  // Contacts are stiff (k, kappa): semi-implicit Euler in substeps of at most 2.5 ms, with the
+  // neighbour lists of the step start (init_neighbours widened them by 2 max_speed dt, the
+  // most two people can close in one step).
   const MaterialParams& P = model_.params;
   const int sub = std::max(1, static_cast<int>(std::ceil(scenario_.dt / 0.0025 - 1e-9)));
   const double h = scenario_.dt / sub;

@@ -55,6 +55,17 @@ class Simulation {
   // (so that changing dt never rewrites the past, and without a change time = steps * dt exactly).
   double time() const { return time_at_dt_change_ + static_cast<double>(steps_ - steps_at_dt_change_) * scenario_.dt; }
   long steps() const { return steps_; }
+  // The step counter and clock, to put back after running steps again (gradient checkpoints).
+  struct Clock {
+    long steps, steps_at_dt_change;
+    double time_at_dt_change;
+  };
+  Clock clock() const { return Clock{steps_, steps_at_dt_change_, time_at_dt_change_}; }
+  void set_clock(const Clock& c) {
+    steps_ = c.steps;
+    steps_at_dt_change_ = c.steps_at_dt_change;
+    time_at_dt_change_ = c.time_at_dt_change;
+  }
   const ScenarioDef& scenario() const { return scenario_; }
   const Model& model() const { return model_; }
   Model& mutable_model() { return model_; }

@@ -88,12 +88,21 @@ std::vector<double> ParamMap::get(const Model& m) const {
 void ParamMap::set(Model& m, const std::vector<double>& u_in) const {
   if (u_in.size() != size()) throw Error("ParamMap::set: expected " + std::to_string(size()) + " values");
   std::vector<double> u = u_in;
-  if (e_index_ >= 0) u[static_cast<size_t>(e_index_)] -= u[static_cast<size_t>(gamma_index_)];
-  for (size_t i = 0; i < scalars_.size(); ++i) {
+  auto bounded = [&](size_t i, double p) {
     const ParamInfo& info = info_of(scalars_[i]);
-    double p = log_[i] ? std::exp(u[i]) : u[i];
-    m.set(scalars_[i], std::clamp(p, log_[i] ? log_floor(info) : info.lo, info.hi));
+    double lo = log_[i] ? log_floor(info) : info.lo;
+    // The pair traction needs comfort distances above the contact epsilon.
+    if (scalars_[i] == "comfort_distance") lo = std::max(lo, 2 * m.params.contact_epsilon);
+    return std::clamp(p, lo, info.hi);
+  };
+  if (e_index_ >= 0) {
+    // Gamma first (clamped), then E from the stiffness E gamma, so that a gamma held at a
+    // bound does not change the stiffness.
+    const double gamma = bounded(static_cast<size_t>(gamma_index_), std::exp(u[static_cast<size_t>(gamma_index_)]));
+    u[static_cast<size_t>(gamma_index_)] = std::log(gamma);
+    u[static_cast<size_t>(e_index_)] -= std::log(gamma);
   }
+  for (size_t i = 0; i < scalars_.size(); ++i) m.set(scalars_[i], bounded(i, log_[i] ? std::exp(u[i]) : u[i]));
   if (network_size_) m.traction.set_parameters(std::vector<double>(u.begin() + static_cast<long>(scalars_.size()), u.end()));
 }
 
@@ -112,6 +121,9 @@ std::vector<double> ParamMap::gradient(const Model& m, const ModelGradient& g) c
 
 void make_windows(const std::vector<TrainDataset>& data, const TrainOptions& o, std::vector<TrainWindow>& train,
                   std::vector<TrainWindow>& validation) {
+  if (!(o.validation_fraction > 0 && o.validation_fraction < 1))
+    throw Error("validation fraction must be in (0, 1), got " + format_number(o.validation_fraction));
+  if (!(o.window > 0 && o.stride > 0)) throw Error("window and stride must be > 0 s");
   train.clear();
   validation.clear();
   const double nan = std::numeric_limits<double>::quiet_NaN();
@@ -119,6 +131,9 @@ void make_windows(const std::vector<TrainDataset>& data, const TrainOptions& o, 
     for (const TrajectorySet& t : data[d].recordings) {
       const long history = std::lround(std::max(o.velocity_window, o.speed_window) * t.framerate);
       const long length = std::lround(o.window * t.framerate);
+      if (length < 1)
+        throw Error(t.source + ": a window of " + format_number(o.window) + " s is shorter than one frame (" +
+                    format_number(1 / t.framerate) + " s)");
       const long stride = std::max(1L, std::lround(o.stride * t.framerate));
       std::vector<long> starts;
       for (long f = t.frame_min() + history; f + length <= t.frame_max(); f += stride) starts.push_back(f);
@@ -152,7 +167,7 @@ void make_windows(const std::vector<TrainDataset>& data, const TrainOptions& o, 
 
 double window_loss(const ScenarioDef& windowed, const TrainWindow& tw, const Model& m, const TrainOptions& o,
                    ModelGradient* grad) {
-  WindowSim ws = start_window(windowed, m, tw.start, WindowOptions{o.threads, o.desired_speed, false});
+  WindowSim ws = start_window(windowed, m, tw.start, WindowOptions{o.threads, o.desired_speed});
   Simulation& sim = *ws.sim;
   const size_t n = sim.world().size();
   const double nan = std::numeric_limits<double>::quiet_NaN();
@@ -213,8 +228,21 @@ TrainResult train_on_windows(const std::vector<ScenarioDef>& scenarios, const st
   std::vector<ScenarioDef> windowed;
   for (const auto& s : scenarios) windowed.push_back(window_scenario(s, false));
   for (const auto* set : {&train, &val})
-    for (const auto& w : *set)
-      if (w.dataset >= windowed.size()) throw Error("a training window names scenario " + std::to_string(w.dataset) + " of " + std::to_string(windowed.size()));
+    for (size_t i = 0; i < set->size(); ++i) {
+      const TrainWindow& w = (*set)[i];
+      const std::string where = std::string(set == &train ? "training" : "validation") + " window " + std::to_string(i);
+      if (w.dataset >= windowed.size())
+        throw Error(where + " names scenario " + std::to_string(w.dataset) + " of " + std::to_string(windowed.size()));
+      const size_t n = w.start.ids.size();
+      if (w.start.x.size() != n || w.start.v.size() != n || (!w.start.speed.empty() && w.start.speed.size() != n))
+        throw Error(where + ": start state has " + std::to_string(n) + " ids but " + std::to_string(w.start.x.size()) +
+                    " positions, " + std::to_string(w.start.v.size()) + " velocities and " + std::to_string(w.start.speed.size()) + " speeds");
+      if (!(w.framerate > 0) || !std::isfinite(w.framerate)) throw Error(where + ": frame rate must be > 0, got " + format_number(w.framerate));
+      if (w.seen.empty()) throw Error(where + " has no recorded frames");
+      for (size_t k = 0; k < w.seen.size(); ++k)
+        if (w.seen[k].size() != n)
+          throw Error(where + ": frame " + std::to_string(k + 1) + " has " + std::to_string(w.seen[k].size()) + " positions for " + std::to_string(n) + " people");
+    }
 
   TrainResult res;
   res.train_windows = train.size();
@@ -247,13 +275,16 @@ TrainResult train_on_windows(const std::vector<ScenarioDef>& scenarios, const st
   };
 
   res.initial_validation = res.best_validation = validation_loss(model);
+  if (!std::isfinite(res.initial_validation))
+    throw Error("training: the starting model cannot be scored on the validation windows (loss " +
+                format_number(res.initial_validation) + "): no person could be compared, or its simulations fail");
   res.model = model;
   int since_best = 0;
   // Full passes over the training windows in a seeded random order, `batch` windows a step.
   std::vector<size_t> order(train.size());
   size_t cursor = order.size();
   // Mean loss of some training windows and its gradient in the optimiser's coordinates.
-  auto batch_loss = [&](const Model& m, const std::vector<size_t>& idx, std::vector<double>* g) {
+  auto batch_loss = [&](const Model& m, const std::vector<size_t>& idx, std::vector<double>* g, int* n_used = nullptr) {
     if (g) g->assign(u.size(), 0.0);
     double loss_sum = 0;
     int used = 0;
@@ -302,6 +333,7 @@ TrainResult train_on_windows(const std::vector<ScenarioDef>& scenarios, const st
       loss_sum += l;
       ++used;
     }
+    if (n_used) *n_used = used;
     if (used == 0) return std::numeric_limits<double>::quiet_NaN();
     if (g)
       for (double& x : *g) x /= used;
@@ -311,7 +343,8 @@ TrainResult train_on_windows(const std::vector<ScenarioDef>& scenarios, const st
   for (size_t i = 0; i < all.size(); ++i) all[i] = i;
   Lbfgs lbfgs;
   std::vector<double> g_full;
-  double f_full = o.optimizer == TrainOptions::Optimizer::Lbfgs ? batch_loss(model, all, &g_full) : 0;
+  int used_full = 0, failed_searches = 0;
+  double f_full = o.optimizer == TrainOptions::Optimizer::Lbfgs ? batch_loss(model, all, &g_full, &used_full) : 0;
 
   for (int it = 1; it <= o.iterations; ++it) {
     TrainProgress pr;
@@ -329,10 +362,18 @@ TrainResult train_on_windows(const std::vector<ScenarioDef>& scenarios, const st
       }
       std::vector<double> g;
       pr.train_loss = batch_loss(model, idx, &g);
-      if (!std::isfinite(pr.train_loss)) continue;
-      pr.grad_norm = adam.step(u, g);
-      map.set(model, u);
-      u = map.get(model);  // clamped values back into the optimiser's coordinates
+      if (std::isfinite(pr.train_loss)) {
+        pr.grad_norm = adam.step(u, g);
+        map.set(model, u);
+        u = map.get(model);  // clamped values back into the optimiser's coordinates
+      } else {
+        // Every window of the batch failed with these parameters (an unstable simulation):
+        // back to the best model so far, with smaller steps.
+        model = res.model;
+        u = map.get(model);
+        lr *= o.lr_decay < 1 ? o.lr_decay : 0.5;
+        adam.set_learning_rate(lr);
+      }
     } else {
       if (!std::isfinite(f_full)) throw Error("training: no training window could be simulated with the starting model");
       std::vector<double> d = lbfgs.direction(g_full);
@@ -352,15 +393,19 @@ TrainResult train_on_windows(const std::vector<ScenarioDef>& scenarios, const st
       for (double x : d) step_len += x * x;
       double alpha = lbfgs.empty() ? std::min(1.0, 0.1 / std::sqrt(step_len)) : 1.0;
       bool accepted = false;
-      for (int tries = 0; tries < 30 && !accepted; ++tries, alpha *= 0.5) {
+      int tries = 0;
+      for (; tries < 30 && !accepted; ++tries) {
+        if (tries > 0) alpha *= 0.5;
         std::vector<double> u_try = u;
         for (size_t k = 0; k < u.size(); ++k) u_try[k] += alpha * d[k];
         Model trial = model;
         map.set(trial, u_try);
         u_try = map.get(trial);
         std::vector<double> g_try;
-        const double f_try = batch_loss(trial, all, &g_try);
-        if (std::isfinite(f_try) && f_try <= f_full + 1e-4 * alpha * slope) {
+        int used_try = 0;
+        const double f_try = batch_loss(trial, all, &g_try, &used_try);
+        // A trial that breaks windows the reference simulated is not comparable: rejected.
+        if (std::isfinite(f_try) && used_try >= used_full && f_try <= f_full + 1e-4 * alpha * slope) {
           std::vector<double> s(u.size()), y(u.size());
           for (size_t k = 0; k < u.size(); ++k) {
             s[k] = u_try[k] - u[k];
@@ -371,15 +416,21 @@ TrainResult train_on_windows(const std::vector<ScenarioDef>& scenarios, const st
           model = trial;
           f_full = f_try;
           g_full = g_try;
+          used_full = used_try;
           accepted = true;
         }
       }
       pr.train_loss = f_full;
-      // A failed line search, or one that had to shrink the step a thousandfold, means the
-      // curvature pairs no longer describe the loss here (it is only piecewise smooth:
-      // contacts begin and end): forget them and go on from the gradient.
-      if (!accepted || alpha < 1e-3) lbfgs.reset();
-      std::fprintf(stderr, "DBG it %d accepted %d alpha %.3g slope %.3e f %.4e\n", it, accepted, alpha * 2, slope, f_full);  // line search failed: forget the curvature, retry from the gradient
+      // A failed line search, or one that had to halve the step ten times, means the curvature
+      // pairs no longer describe the loss here (it is only piecewise smooth: contacts begin and
+      // end): forget them and go on from the gradient. Two failures in a row at the same point
+      // from the gradient itself: nothing left to gain, stop.
+      if (!accepted && lbfgs.empty()) {
+        if (++failed_searches >= 2) res.early_stopped = true;
+      } else {
+        failed_searches = 0;
+      }
+      if (!accepted || tries > 10) lbfgs.reset();
     }
     res.iterations = it;
     if (it % o.eval_every == 0 || it == o.iterations) {

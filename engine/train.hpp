@@ -36,7 +36,7 @@ struct TrainOptions {
   double validation_fraction = 0.25;  // the last share of every recording's windows
   int eval_every = 5;            // iterations between validation passes
   int patience = 6;              // validation passes without improvement before stopping
-  double lr_decay = 0.5;         // learning rate factor after a validation pass without improvement
+  double lr_decay = 0.5;         // Adam: learning rate factor (and back to the best point) after a validation pass without improvement
   uint64_t seed = 1;             // minibatch sampling
   std::vector<std::string> params;  // scalar parameters to learn; empty: all the model kind has
   bool learn_network = true;     // the traction network's weights and biases (crowd material)
@@ -108,7 +108,7 @@ struct TrainResult {
   int best_iteration = 0, iterations = 0;
   bool early_stopped = false;
   size_t train_windows = 0, validation_windows = 0;
-  long skipped_windows = 0;     // windows whose simulation failed (non-finite) and were left out
+  long skipped_windows = 0;     // window evaluations whose simulation failed (non-finite) and were left out
   std::vector<TrainProgress> history;
 };
 

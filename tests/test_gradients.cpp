@@ -536,6 +536,7 @@ TEST_CASE("checkpointed window gradient equals the stored one and leaves the sim
       return true;
     });
     final_hash = sim.world().state_hash();
+    CHECK(sim.steps() == steps);
     peak = wg.peak_stored_steps();
     return g;
   };

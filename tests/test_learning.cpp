@@ -121,7 +121,7 @@ std::vector<TrainWindow> synthetic_windows(const ScenarioDef& s, const Model& tr
     TrainWindow w;
     w.start = random_crowd(rng, s.geo);
     w.framerate = 20;
-    WindowSim ws = start_window(windowed, truth, w.start, WindowOptions{1, DesiredSpeed::Observed, false});
+    WindowSim ws = start_window(windowed, truth, w.start, WindowOptions{1, DesiredSpeed::Observed});
     const int per_frame = static_cast<int>(std::lround(1.0 / (w.framerate * s.dt)));
     double jmin = 1, jmax = 1;
     for (int k = 0; k < static_cast<int>(seconds * w.framerate); ++k) {
@@ -211,7 +211,7 @@ TEST_CASE("real recordings: the learned model beats constant velocity and the de
   po.observe = 4;
   po.horizon = 4;
   po.threads = 2;
-  const WindowOptions wo{2, DesiredSpeed::Observed, true};
+  const WindowOptions wo{2, DesiredSpeed::Observed};
   for (const auto& [scenario, file] : {std::pair<const ScenarioDef*, std::string>{&corridor, corr + "uo-145-180-180.txt"},
                                        {&bottleneck, bott + "040_c_56_h-.txt"}}) {
     const TrajectorySet t = TrajectorySet::read(file);

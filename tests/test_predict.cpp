@@ -70,7 +70,7 @@ TEST_CASE("the crowd model predicts free walkers heading for an exit", "[predict
   PredictOptions o;
   o.observe = 1;
   o.horizon = 3;
-  PredictionReport r = evaluate_predictor("model", t, o, simulation_predictor(s, Model::default_model(), WindowOptions{1, DesiredSpeed::Scenario, true}));
+  PredictionReport r = evaluate_predictor("model", t, o, simulation_predictor(s, Model::default_model(), WindowOptions{1, DesiredSpeed::Scenario}));
   for (const auto& h : r.horizons) CHECK(h.fde < 0.05);
 }
 
@@ -88,7 +88,7 @@ TEST_CASE("predict on a real corridor run: finite errors, constant velocity sane
   o.stride = 10;
   o.max_windows = 4;
   PredictionReport cv = evaluate_predictor("cv", t, o, constant_velocity_predictor());
-  PredictionReport model = evaluate_predictor("model", t, o, simulation_predictor(s, test::model_of(s), WindowOptions{2, DesiredSpeed::Scenario, true}));
+  PredictionReport model = evaluate_predictor("model", t, o, simulation_predictor(s, test::model_of(s), WindowOptions{2, DesiredSpeed::Scenario}));
   for (const auto* r : {&cv, &model}) {
     REQUIRE(r->windows == 4);
     std::printf("predict corridor %-6s", r->method.c_str());
