@@ -74,3 +74,14 @@ TEST_CASE("model JSON round-trips through to_json and parse", "[validation]") {
   CHECK_THROWS_WITH(m.set("E", -1), Catch::Contains("E must be in"));
   CHECK_THROWS_WITH(m.set("stiffness", 1), Catch::Contains("unknown material parameter \"stiffness\""));
 }
+
+TEST_CASE("every shipped model is valid", "[validation]") {
+  size_t n = 0;
+  for (const auto& entry : std::filesystem::directory_iterator(test::repo_path("scenarios/models"))) {
+    if (entry.path().extension() != ".json") continue;
+    INFO("model: " << entry.path().string());
+    CHECK_NOTHROW(Model::load(entry.path().string()));
+    ++n;
+  }
+  CHECK(n >= 1);
+}
