@@ -345,7 +345,7 @@ int cmd_predict(const Args& a) {
               {"units", "metres, m/s"}, {"methods", json::array()}};
     for (const auto& r : reports) j["methods"].push_back(report_to_json(r));
     std::ofstream(a.out + "/prediction.json") << j.dump(2) << "\n";
-    // Paths of the first window: recorded, constant velocity, the last model given.
+    // Paths of the first window: recorded, constant velocity, the first model given (else the default).
     long f0 = t.frame_min() + std::lround(o.observe * t.framerate);
     ObservedState st = observe_at(t, f0, o.velocity_window, o.speed_window);
     std::vector<double> times;
@@ -365,9 +365,10 @@ int cmd_predict(const Args& a) {
         for (size_t i = 0; i < st.ids.size(); ++i)
           if (st.ids[i] == p->id) recorded[k][i] = Vec2(p->x, p->y);
     }
+    const Model& shown = models.size() > 1 ? models[1] : models[0];
     std::vector<PathSet> sets = {{"recorded", 60, 160, 60, as_paths(recorded)},
                                  {"const. velocity", 200, 120, 40, as_paths(constant_velocity_predictor()(st, times))},
-                                 {model_label(models.back()), 40, 40, 210, as_paths(simulation_predictor(s, models.back(), wo)(st, times))}};
+                                 {model_label(shown), 40, 40, 210, as_paths(simulation_predictor(s, shown, wo)(st, times))}};
     write_paths_png(a.out + "/prediction.png", s.geo, View::fit(s.geo, s.outputs.pixels_per_metre), sets,
                     "prediction from t = " + format_number(o.observe) + " s, " + format_number(o.horizon) + " s ahead");
     std::printf("wrote %s/prediction.json and %s/prediction.png\n", a.out.c_str(), a.out.c_str());

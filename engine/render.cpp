@@ -141,7 +141,14 @@ void write_field_png(const std::string& path, const Geometry& geo, const View& v
 
 void write_paths_png(const std::string& path, const Geometry& geo, const View& v, const std::vector<PathSet>& sets,
                      const std::string& text) {
-  cv::Mat img = canvas(v);
+  // The legend sits right of the venue: as wide as its longest label.
+  int label_w = 0;
+  for (const auto& set : sets) {
+    int base = 0;
+    label_w = std::max(label_w, cv::getTextSize(set.label, cv::FONT_HERSHEY_SIMPLEX, 0.35, 1, &base).width);
+  }
+  cv::Mat img(v.height() + kTitle + kPad, std::max(480, v.width() + 2 * kPad + 4 + 18 + label_w + 6), CV_8UC3,
+              cv::Scalar(255, 255, 255));
   draw_geometry(img, v, geo);
   int legend_y = kTitle + 16;
   for (const auto& set : sets) {
