@@ -113,6 +113,10 @@ const char* kTrainHelp =
     "                     fluid: the same without tension_scale; social_force:\n"
     "                     tau,v0_scale,sf_A,sf_B,sf_k,sf_kappa)\n"
     "  --no-network       keep the traction network fixed\n"
+    "  --loss trajectory|grid_velocity\n"
+    "                     mean squared distance to the recorded positions (default), or the\n"
+    "                     mass-weighted grid velocity against the recorded people's velocity\n"
+    "                     field on the nodes they cover (the loss video learning uses)\n"
     "  --window S         seconds per window (default 2)\n"
     "  --stride S         seconds between windows (default 1)\n"
     "  --iterations N     Adam steps at most (default 120)\n"
@@ -216,6 +220,10 @@ Args parse_args(int argc, char** argv, int first) {
         b = e + 1;
       }
       if (a.train.params.empty()) usage_error("--params needs at least one parameter name");
+    } else if (s == "--loss") {
+      const std::string v = value("--loss");
+      if (v != "trajectory" && v != "grid_velocity") usage_error("--loss must be 'trajectory' or 'grid_velocity', got '" + v + "'");
+      a.train.loss = v == "trajectory" ? TrainOptions::Loss::Trajectory : TrainOptions::Loss::GridVelocity;
     } else if (s == "--material") {
       a.material = value("--material");
     } else if (s == "--no-network") a.train.learn_network = false;
@@ -408,9 +416,9 @@ int cmd_train(const Args& a) {
   TrainResult r = train_model(data, start, o, [&](const TrainProgress& p) {
     if (!show) return;
     if (std::isnan(p.validation_loss))
-      std::printf("  iter %4d  train loss %.5f m2  |grad| %.3g\n", p.iteration, p.train_loss, p.grad_norm);
+      std::printf("  iter %4d  train loss %.5f  |grad| %.3g\n", p.iteration, p.train_loss, p.grad_norm);
     else
-      std::printf("  iter %4d  train loss %.5f m2  |grad| %.3g  validation %.5f m2%s\n", p.iteration, p.train_loss,
+      std::printf("  iter %4d  train loss %.5f  |grad| %.3g  validation %.5f%s\n", p.iteration, p.train_loss,
                   p.grad_norm, p.validation_loss, p.improved ? "  (best)" : "");
     std::fflush(stdout);
   });
@@ -419,20 +427,21 @@ int cmd_train(const Args& a) {
   std::string from;
   for (const auto& [scen, trajs] : a.datasets)
     for (const auto& f : trajs) from += (from.empty() ? "" : ", ") + std::filesystem::path(f).filename().string();
-  char desc[512];
-  std::snprintf(desc, sizeof desc,
-                "Learned by crowdmpm train from %s (%zu training, %zu validation windows of %g s); validation "
-                "trajectory loss %.5f m2 at the start, %.5f m2 at iteration %d of %d.",
-                from.c_str(), r.train_windows, r.validation_windows, o.window, r.initial_validation, r.best_validation,
-                r.best_iteration, r.iterations);
-  m.description = desc;
+  const bool traj = o.loss == TrainOptions::Loss::Trajectory;
+  const char* loss_name = traj ? "trajectory" : "grid velocity";
+  const char* loss_unit = traj ? "m2" : "(m/s)2";
+  m.description = "Learned by crowdmpm train from " + from + " (" + std::to_string(r.train_windows) + " training, " +
+                  std::to_string(r.validation_windows) + " validation windows of " + format_number(o.window) +
+                  " s); validation " + loss_name + " loss " + format_number(r.initial_validation) + " " + loss_unit +
+                  " at the start, " + format_number(r.best_validation) + " at iteration " + std::to_string(r.best_iteration) +
+                  " of " + std::to_string(r.iterations) + ".";
   std::ofstream out(a.out);
   if (!out) throw Error("cannot write " + a.out);
   out << m.to_json().dump(2) << "\n";
   out.close();
   if (!out) throw Error("writing " + a.out + " failed");
-  std::printf("validation loss %.5f -> %.5f m2 (best at iteration %d of %d%s); %ld windows skipped; wrote %s\n",
-              r.initial_validation, r.best_validation, r.best_iteration, r.iterations,
+  std::printf("validation %s loss %.5f -> %.5f %s (best at iteration %d of %d%s); %ld windows skipped; wrote %s\n",
+              loss_name, r.initial_validation, r.best_validation, loss_unit, r.best_iteration, r.iterations,
               r.early_stopped ? ", stopped early" : "", r.skipped_windows, a.out.c_str());
   const ParamMap learned(m, o.params, false);
   for (const auto& name : learned.scalars())

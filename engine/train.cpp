@@ -183,16 +183,63 @@ double window_loss(const ScenarioDef& windowed, const TrainWindow& tw, const Mod
     target.steps.push_back(step);
     target.targets.push_back(std::move(row));
   }
-  const long samples = target.samples();
-  if (samples == 0) return nan;
-  const double weight = 1.0 / static_cast<double>(samples);
+  if (target.samples() == 0) return nan;
   const int steps = target.steps.back();
+  // Per target step: the loss term at the state after it, and its gradient when asked for.
+  std::function<double(size_t, const World&, std::vector<Vec2>*, std::vector<Vec2>*)> term;
+  if (o.loss == TrainOptions::Loss::Trajectory) {
+    const double weight = 1.0 / static_cast<double>(target.samples());
+    term = [&, weight](size_t s, const World& w, std::vector<Vec2>* dx, std::vector<Vec2>*) {
+      double l = 0;
+      trajectory_loss_at(w.x, target.targets[s], weight, l, dx);
+      return l;
+    };
+  } else {
+    // The recorded velocity field at each target step: positions and one-frame velocities of
+    // the people seen in both frames, transferred to the simulation's grid.
+    std::vector<GridVelocityField> fields;
+    size_t used = 0;
+    std::vector<Vec2> start_x(n, Vec2(nan, nan));  // dense order
+    for (size_t i = 0; i < ws.ids.size(); ++i)
+      if (ws.ids[i]) start_x[static_cast<size_t>(sim.world().index_of(ws.ids[i]))] = tw.start.x[i];
+    for (size_t s = 0; s < target.steps.size(); ++s) {
+      const auto& now = target.targets[s];
+      std::vector<Vec2> xs, vs;
+      for (size_t p = 0; p < n; ++p) {
+        // The frame before: the previous target row, or the start state for the first one.
+        const Vec2 before = s > 0 ? target.targets[s - 1][p] : start_x[p];
+        if (!now[p].allFinite() || !before.allFinite()) continue;
+        const double gap = (target.steps[s] - (s > 0 ? target.steps[s - 1] : 0)) * windowed.dt;
+        xs.push_back(now[p]);
+        vs.push_back((now[p] - before) / gap);
+      }
+      fields.push_back(grid_velocity_of(xs, vs, 1, sim.grid(), o.grid_min_mass));
+      used += fields.back().mask_sum() > 0 ? 1 : 0;
+    }
+    if (used == 0) return nan;
+    const double mass = m.params.mass, weight = 1.0 / static_cast<double>(used);
+    term = [&, fields = std::move(fields), mass, weight](size_t s, const World& w, std::vector<Vec2>* dx, std::vector<Vec2>* dv) {
+      if (fields[s].mask_sum() <= 0) return 0.0;
+      std::vector<Vec2> gx, gv;
+      if (dx) {
+        gx.assign(w.size(), Vec2::Zero());
+        gv.assign(w.size(), Vec2::Zero());
+      }
+      const double l = grid_velocity_loss(w.x, w.v, mass, sim.grid(), fields[s], dx ? &gx : nullptr, dx ? &gv : nullptr);
+      if (dx)
+        for (size_t p = 0; p < w.size(); ++p) {
+          (*dx)[p] += weight * gx[p];
+          (*dv)[p] += weight * gv[p];
+        }
+      return weight * l;
+    };
+  }
   double loss = 0;
   size_t next = 0;
   if (!grad) {
     for (int k = 1; k <= steps; ++k) {
       sim.step();
-      if (target.steps[next] == k) trajectory_loss_at(sim.world().x, target.targets[next++], weight, loss, nullptr);
+      if (target.steps[next] == k) loss += term(next++, sim.world(), nullptr, nullptr);
     }
     return loss;
   }
@@ -200,9 +247,9 @@ double window_loss(const ScenarioDef& windowed, const TrainWindow& tw, const Mod
   if (every <= 0 && static_cast<double>(steps) * static_cast<double>(n) * static_cast<double>(WindowGradient().stored_bytes_per_agent_step()) > o.max_stored_bytes)
     every = static_cast<int>(std::ceil(std::sqrt(static_cast<double>(steps))));
   WindowGradient wg(every);
-  *grad = wg.run(sim, steps, [&](int k, const World& w, std::vector<Vec2>& dx, std::vector<Vec2>&) {
+  *grad = wg.run(sim, steps, [&](int k, const World& w, std::vector<Vec2>& dx, std::vector<Vec2>& dv) {
     if (next >= target.steps.size() || target.steps[next] != k) return false;
-    trajectory_loss_at(w.x, target.targets[next++], weight, loss, &dx);
+    loss += term(next++, w, &dx, &dv);
     return true;
   });
   return loss;

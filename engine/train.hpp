@@ -25,6 +25,12 @@ struct TrainOptions {
   double velocity_window = 0.5;  // s, as PredictOptions
   double speed_window = 1;       // s, as PredictOptions
   DesiredSpeed desired_speed = DesiredSpeed::Observed;
+  // trajectory: mean squared position error of the people seen (losses.hpp); grid_velocity: the
+  // mass-weighted grid velocity against the recorded people's velocity field on the nodes they
+  // cover (at least grid_min_mass persons), averaged over the window's frames.
+  enum class Loss { Trajectory, GridVelocity };
+  Loss loss = Loss::Trajectory;
+  double grid_min_mass = 0.5;
   enum class Optimizer { Adam, Lbfgs };
   // Adam on minibatches (default), or L-BFGS with a backtracking line search on the full batch
   // of training windows (for small, noise-free problems with ill-conditioned valleys).
@@ -88,9 +94,10 @@ struct TrainWindow {
 void make_windows(const std::vector<TrainDataset>& data, const TrainOptions& o, std::vector<TrainWindow>& train,
                   std::vector<TrainWindow>& validation);
 
-// The trajectory loss of one window under a model (mean squared position error, m^2, over every
-// frame of the window and every person placed at its start), and its gradient when `grad` is
-// given. `windowed` is window_scenario(scenario, false). NaN when nobody can be compared.
+// The loss of one window under a model (o.loss: the trajectory loss, mean squared position error
+// in m^2 over every frame of the window and every person placed at its start; or the grid
+// velocity loss, (m/s)^2 per person), and its gradient when `grad` is given. `windowed` is
+// window_scenario(scenario, false). NaN when nobody can be compared.
 double window_loss(const ScenarioDef& windowed, const TrainWindow& w, const Model& m, const TrainOptions& o,
                    ModelGradient* grad);
 
