@@ -59,6 +59,32 @@ TEST_CASE("a predictor that is off by a fixed offset reports that offset", "[pre
   CHECK(r.horizons[1].fde == Approx(0.5));
 }
 
+TEST_CASE("grid velocity error: zero for an exact predictor, the speed difference for a slower one", "[predict]") {
+  TrajectorySet t = straight_walkers();
+  Geometry geo;
+  geo.lo = Vec2(0, 0);
+  geo.hi = Vec2(20, 8);
+  Grid grid;
+  grid.init(geo, 0.5);
+  PredictOptions o;
+  o.observe = 1;
+  o.horizon = 2;
+  o.grid_min_mass = 0.05;  // a person 0.5 m (one cell) off puts 0.094 on the nodes both cover
+  PredictionReport exact = evaluate_predictor("cv", t, o, constant_velocity_predictor(), &grid);
+  CHECK(exact.horizons[1].grid_velocity_rms == Approx(0).margin(1e-9));
+  // Walking at 0.5 m/s instead of 1: the fields differ by 0.5 m/s where both cover a node.
+  Predictor slow = [](const ObservedState& s, const std::vector<double>& times) {
+    std::vector<std::vector<Vec2>> out(times.size());
+    for (size_t k = 0; k < times.size(); ++k)
+      for (size_t i = 0; i < s.x.size(); ++i) out[k].push_back(s.x[i] + 0.5 * times[k] * s.v[i]);
+    return out;
+  };
+  PredictionReport r = evaluate_predictor("slow", t, o, slow, &grid);
+  CHECK(r.horizons[0].grid_velocity_rms == Approx(0.5).epsilon(1e-6));
+  // Without a grid there is no grid error.
+  CHECK(std::isnan(evaluate_predictor("cv", t, o, constant_velocity_predictor()).horizons[0].grid_velocity_rms));
+}
+
 TEST_CASE("the crowd model predicts free walkers heading for an exit", "[predict]") {
   const char* text = R"({"format": "crowdmpm-scenario", "version": 1,
     "domain": {"min": [0, 0], "max": [20, 8]}, "time": {"duration": 10},
