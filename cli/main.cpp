@@ -319,7 +319,8 @@ int cmd_predict(const Args& a) {
   if (!a.positional.empty()) usage_error("predict takes no positional arguments (got '" + a.positional[0] + "')");
   ScenarioDef s = ScenarioDef::load(a.scenario);
   std::vector<Model> models = {s.model_or_default()};
-  models[0].name = "untrained " + (models[0].name.empty() ? std::string("model") : models[0].name);
+  models[0].name = !s.model ? std::string("untrained default")
+                            : "scenario's model " + (models[0].name.empty() ? std::string("") : models[0].name);
   for (const auto& path : a.models) models.push_back(Model::load(path));
   TrajectorySet t = TrajectorySet::read(a.trajectories);
   PredictOptions o;
