@@ -1,0 +1,95 @@
+#!/usr/bin/env bash
+# The command-line tool as a user runs it: help, simulate, validate, errors and exit codes, and
+# train -> validate -> predict on trajectories the tool itself wrote (no ../shared/data needed).
+# Usage: cli_test.sh CROWDMPM SOURCE_DIR WORK_DIR
+set -uo pipefail
+cli=$1
+src=$2
+work=$3
+rm -rf "$work"
+mkdir -p "$work"
+failures=0
+check() {  # check NAME EXPECTED_STATUS COMMAND... : runs it, keeps stdout+stderr in $out
+  local name=$1 want=$2
+  shift 2
+  out=$("$@" 2>&1)
+  local got=$?
+  if [ "$got" != "$want" ]; then
+    echo "FAIL $name: exit status $got, expected $want"
+    echo "$out" | head -20
+    failures=$((failures + 1))
+  else
+    echo "ok   $name"
+  fi
+}
+contains() {  # contains NAME TEXT : $out must contain TEXT
+  if ! grep -qF -- "$2" <<< "$out"; then
+    echo "FAIL $1: output lacks '$2'"
+    echo "$out" | head -20
+    failures=$((failures + 1))
+  fi
+}
+
+check "help" 0 "$cli" help
+contains "help lists train" "train --scenario"
+for c in simulate validate predict train; do
+  check "help $c" 0 "$cli" "$c" --help
+  contains "help $c" "usage: crowdmpm $c"
+done
+check "no command" 2 "$cli"
+check "unknown command" 2 "$cli" frobnicate
+contains "unknown command" "unknown command 'frobnicate'"
+check "unknown option" 2 "$cli" simulate "$src/scenarios/drill.json" --out "$work/x" --bogus
+contains "unknown option" "unknown option '--bogus'"
+check "bad threads" 2 "$cli" simulate "$src/scenarios/drill.json" --out "$work/x" --threads 0
+check "bad scenario" 1 "$cli" validate "$src/tests/bad/scenario_negative_density.json"
+contains "bad scenario names the path" "density"
+check "missing file" 1 "$cli" validate "$work/does_not_exist.json"
+
+# Simulate a bottleneck for 12 s: every output is written.
+check "simulate" 0 "$cli" simulate "$src/scenarios/bottleneck.json" --out "$work/sim" --duration 12 --quiet
+contains "simulate summary" "12.0 s simulated"
+for f in trajectories.txt metrics.json density.npy velocity.npy pressure.npy fields.json pressure_mean.png \
+         density_mean.png final.png particles.mp4; do
+  [ -s "$work/sim/$f" ] || { echo "FAIL simulate: $f missing or empty"; failures=$((failures + 1)); }
+done
+
+# Train on the trajectories just written, then load and use the model.
+check "train" 0 "$cli" train --scenario "$src/scenarios/bottleneck.json" --trajectories "$work/sim/trajectories.txt" \
+  --window 1 --iterations 3 --eval-every 1 --out "$work/model.json"
+contains "train reports" "validation trajectory loss"
+check "validate learned model" 0 "$cli" validate "$src/scenarios/bottleneck.json" --model "$work/model.json"
+check "train grid velocity loss" 0 "$cli" train --scenario "$src/scenarios/bottleneck.json" \
+  --trajectories "$work/sim/trajectories.txt" --window 1 --iterations 2 --loss grid_velocity --quiet --out "$work/gv.json"
+check "train social force" 0 "$cli" train --scenario "$src/scenarios/bottleneck.json" \
+  --trajectories "$work/sim/trajectories.txt" --window 1 --iterations 1 --material social_force --quiet --out "$work/sf.json"
+check "predict" 0 "$cli" predict --trajectories "$work/sim/trajectories.txt" --scenario "$src/scenarios/bottleneck.json" \
+  --observe 2 --horizon 2 --model "$work/model.json" --model "$work/sf.json" --out "$work/pred"
+contains "predict table" "constant velocity"
+contains "predict table" "untrained default"
+[ -s "$work/pred/prediction.json" ] && [ -s "$work/pred/prediction.png" ] ||
+  { echo "FAIL predict: prediction.json or prediction.png missing"; failures=$((failures + 1)); }
+
+# Errors of train and predict.
+check "train without --out" 2 "$cli" train --scenario "$src/scenarios/bottleneck.json" --trajectories "$work/sim/trajectories.txt"
+check "train trajectories first" 2 "$cli" train --trajectories "$work/sim/trajectories.txt" --out "$work/m.json"
+check "train unknown parameter" 1 "$cli" train --scenario "$src/scenarios/bottleneck.json" \
+  --trajectories "$work/sim/trajectories.txt" --params E,nonsense --out "$work/m.json"
+contains "train unknown parameter" "unknown model parameter 'nonsense'"
+check "train window too long" 1 "$cli" train --scenario "$src/scenarios/bottleneck.json" \
+  --trajectories "$work/sim/trajectories.txt" --window 100 --out "$work/m.json"
+check "train unwritable output" 1 "$cli" train --scenario "$src/scenarios/bottleneck.json" \
+  --trajectories "$work/sim/trajectories.txt" --out "$work/no/such/dir/m.json"
+contains "train unwritable output" "does not exist"
+printf '# framerate: 10\n1 0 0.5 nan\n' > "$work/nan.txt"
+check "train non-finite trajectory" 1 "$cli" train --scenario "$src/scenarios/bottleneck.json" --trajectories "$work/nan.txt" --out "$work/m.json"
+check "predict horizon too long" 2 "$cli" predict --scenario "$src/scenarios/bottleneck.json" \
+  --trajectories "$work/sim/trajectories.txt" --observe 10 --horizon 10
+check "predict bad model" 1 "$cli" predict --scenario "$src/scenarios/bottleneck.json" \
+  --trajectories "$work/sim/trajectories.txt" --model "$src/tests/bad/model_negative_E.json"
+
+if [ "$failures" -ne 0 ]; then
+  echo "$failures CLI check(s) failed"
+  exit 1
+fi
+echo "all CLI checks passed"
