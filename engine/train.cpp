@@ -303,22 +303,35 @@ TrainResult train_on_windows(const std::vector<ScenarioDef>& scenarios, const st
   adam.set_clip_norm(o.clip_norm);
   Rng rng(o.seed);
 
+  // Windows are independent: with several threads each runs whole windows on one thread
+  // (simulation and backward pass), and their results are summed in window order, so training
+  // gives the same model for any thread count.
+  ThreadPool pool(std::max(1, o.threads));
+  TrainOptions one = o;
+  one.threads = 1;
+  const double nan = std::numeric_limits<double>::quiet_NaN();
   auto validation_loss = [&](const Model& m) {
+    std::vector<double> ls(val.size(), nan);
+    std::vector<char> broke(val.size(), 0);
+    pool.parallel_for(val.size(), [&](size_t b, size_t e) {
+      for (size_t j = b; j < e; ++j) {
+        try {
+          ls[j] = window_loss(windowed[val[j].dataset], val[j], m, one, nullptr);
+        } catch (const Error&) {
+          broke[j] = 1;
+        }
+      }
+    }, 1);
     double sum = 0;
     long n = 0;
-    for (const auto& w : val) {
-      double l;
-      try {
-        l = window_loss(windowed[w.dataset], w, m, o, nullptr);
-      } catch (const Error&) {
-        return std::numeric_limits<double>::infinity();  // this model breaks a simulation: not a candidate
-      }
-      if (std::isfinite(l)) {
-        sum += l;
+    for (size_t j = 0; j < val.size(); ++j) {
+      if (broke[j]) return std::numeric_limits<double>::infinity();  // this model breaks a simulation: not a candidate
+      if (std::isfinite(ls[j])) {
+        sum += ls[j];
         ++n;
       }
     }
-    return n ? sum / static_cast<double>(n) : std::numeric_limits<double>::quiet_NaN();
+    return n ? sum / static_cast<double>(n) : nan;
   };
 
   res.initial_validation = res.best_validation = validation_loss(model);
@@ -331,53 +344,63 @@ TrainResult train_on_windows(const std::vector<ScenarioDef>& scenarios, const st
   std::vector<size_t> order(train.size());
   size_t cursor = order.size();
   // Mean loss of some training windows and its gradient in the optimiser's coordinates.
+  // One window's loss and, when asked, its gradient in the optimiser's coordinates; NaN loss
+  // when it cannot be compared, `failed` when its simulation broke.
+  struct WindowResult {
+    double loss = std::numeric_limits<double>::quiet_NaN();
+    std::vector<double> grad;
+    bool failed = false;
+  };
+  auto one_window = [&](const Model& m, const TrainWindow& w, bool want_grad) {
+    WindowResult r;
+    try {
+      ModelGradient mg;
+      r.loss = window_loss(windowed[w.dataset], w, m, one, want_grad && m.is_continuum() ? &mg : nullptr);
+      if (want_grad && std::isfinite(r.loss)) {
+        if (m.is_continuum()) {
+          r.grad = map.gradient(m, mg);
+        } else {
+          // The social force model has no adjoint here: central differences in the
+          // optimiser's coordinates (a few scalars; each costs two forward runs).
+          const std::vector<double> u0 = map.get(m);
+          const double h = 3e-3;
+          for (size_t k = 0; k < u0.size(); ++k) {
+            double side[2];
+            for (int sgn = 0; sgn < 2; ++sgn) {
+              std::vector<double> uk = u0;
+              uk[k] += sgn ? -h : h;
+              Model mk = m;
+              map.set(mk, uk);
+              side[sgn] = window_loss(windowed[w.dataset], w, mk, one, nullptr);
+            }
+            r.grad.push_back((side[0] - side[1]) / (2 * h));
+          }
+        }
+        for (double x : r.grad) r.failed = r.failed || !std::isfinite(x);
+      }
+    } catch (const Error&) {
+      r.failed = true;
+    }
+    return r;
+  };
+  // Mean loss of some training windows and its gradient in the optimiser's coordinates.
   auto batch_loss = [&](const Model& m, const std::vector<size_t>& idx, std::vector<double>* g, int* n_used = nullptr) {
+    std::vector<WindowResult> rs(idx.size());
+    pool.parallel_for(idx.size(), [&](size_t b, size_t e) {
+      for (size_t j = b; j < e; ++j) rs[j] = one_window(m, train[idx[j]], g != nullptr);
+    }, 1);
     if (g) g->assign(u.size(), 0.0);
     double loss_sum = 0;
     int used = 0;
-    for (size_t i : idx) {
-      const TrainWindow& w = train[i];
-      ModelGradient mg;
-      double l;
-      std::vector<double> gu;
-      try {
-        l = window_loss(windowed[w.dataset], w, m, o, g && m.is_continuum() ? &mg : nullptr);
-        if (g && std::isfinite(l)) {
-          if (m.is_continuum()) {
-            gu = map.gradient(m, mg);
-          } else {
-            // The social force model has no adjoint here: central differences in the
-            // optimiser's coordinates (a few scalars; each costs two forward runs).
-            const std::vector<double> u0 = map.get(m);
-            const double h = 3e-3;
-            for (size_t k = 0; k < u0.size(); ++k) {
-              double side[2];
-              for (int sgn = 0; sgn < 2; ++sgn) {
-                std::vector<double> uk = u0;
-                uk[k] += sgn ? -h : h;
-                Model mk = m;
-                map.set(mk, uk);
-                side[sgn] = window_loss(windowed[w.dataset], w, mk, o, nullptr);
-              }
-              gu.push_back((side[0] - side[1]) / (2 * h));
-            }
-          }
-        }
-      } catch (const Error&) {
+    for (const WindowResult& r : rs) {
+      if (r.failed) {
         ++res.skipped_windows;
         continue;
       }
-      if (!std::isfinite(l)) continue;
-      if (g) {
-        bool finite = true;
-        for (double x : gu) finite = finite && std::isfinite(x);
-        if (!finite) {
-          ++res.skipped_windows;
-          continue;
-        }
-        for (size_t k = 0; k < gu.size(); ++k) (*g)[k] += gu[k];
-      }
-      loss_sum += l;
+      if (!std::isfinite(r.loss)) continue;
+      if (g)
+        for (size_t k = 0; k < r.grad.size(); ++k) (*g)[k] += r.grad[k];
+      loss_sum += r.loss;
       ++used;
     }
     if (n_used) *n_used = used;
