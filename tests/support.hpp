@@ -19,6 +19,16 @@ inline std::string shared_data_dir() {
 
 inline Model model_of(const ScenarioDef& s) { return s.model_or_default(); }
 
+// An MPM grid over the empty box [0, w] x [0, h] with the given spacing.
+inline Grid box_grid(double w, double h, double dx) {
+  Geometry geo;
+  geo.lo = Vec2(0, 0);
+  geo.hi = Vec2(w, h);
+  Grid g;
+  g.init(geo, dx);
+  return g;
+}
+
 // Runs a scenario for `seconds` (or its duration), calling on_frame after every output frame.
 inline void run_for(Simulation& sim, double seconds, const std::function<void(const Simulation&)>& on_frame) {
   const int spf = sim.scenario().steps_per_frame();

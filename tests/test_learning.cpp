@@ -12,15 +12,6 @@ using namespace crowdmpm;
 
 namespace {
 double rel_err(double a, double b) { return std::abs(a - b) / std::max({std::abs(a), std::abs(b), 1e-6}); }
-
-Grid small_grid() {
-  Geometry geo;
-  geo.lo = Vec2(0, 0);
-  geo.hi = Vec2(4, 3);
-  Grid g;
-  g.init(geo, 0.5);
-  return g;
-}
 }  // namespace
 
 TEST_CASE("trajectory loss skips masked samples and its gradient is exact", "[learning]") {
@@ -41,7 +32,7 @@ TEST_CASE("trajectory loss skips masked samples and its gradient is exact", "[le
 }
 
 TEST_CASE("grid velocity loss: gradient with respect to positions and velocities matches differences", "[learning]") {
-  const Grid g = small_grid();
+  const Grid g = test::box_grid(4, 3, 0.5);
   Rng rng(3);
   std::vector<Vec2> x, v;
   for (int i = 0; i < 25; ++i) {

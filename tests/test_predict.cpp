@@ -61,11 +61,7 @@ TEST_CASE("a predictor that is off by a fixed offset reports that offset", "[pre
 
 TEST_CASE("grid velocity error: zero for an exact predictor, the speed difference for a slower one", "[predict]") {
   TrajectorySet t = straight_walkers();
-  Geometry geo;
-  geo.lo = Vec2(0, 0);
-  geo.hi = Vec2(20, 8);
-  Grid grid;
-  grid.init(geo, 0.5);
+  const Grid grid = test::box_grid(20, 8, 0.5);
   PredictOptions o;
   o.observe = 1;
   o.horizon = 2;
