@@ -132,7 +132,8 @@ const char* kTrainHelp =
     "  --desired-speed observed|scenario\n"
     "                     desired speed of the recorded people: their own walking speed\n"
     "                     (default) or the scenario group's, times v0_scale\n"
-    "  --threads N        worker threads of the forward passes (default 1)\n"
+    "  --threads N        windows simulated and differentiated in parallel, one per thread;\n"
+    "                     the model does not depend on N (default 1)\n"
     "  --quiet            no progress lines\n";
 
 const char* kValidateHelp =
