@@ -12,15 +12,21 @@ namespace crowdmpm {
 ObservedState observe_at(const TrajectorySet& t, long frame, double velocity_window, double speed_window) {
   ObservedState s;
   s.frame = frame;
-  auto positions_at = [&](long f) {
-    std::unordered_map<long, Vec2> at;
-    auto [b, e] = t.frame(f);
-    for (auto p = b; p != e; ++p) at[p->id] = Vec2(p->x, p->y);
-    return at;
-  };
   const long back = std::max(1L, std::lround(velocity_window * t.framerate));
   const long back_s = std::max(back, std::lround(speed_window * t.framerate));
-  const auto before = positions_at(frame - back), long_before = positions_at(frame - back_s);
+  // Each person's latest recorded position at or before `target` frames, searching no further
+  // back than `limit` (recordings sampled every few frames, such as ETH/UCY's every 10th,
+  // have no row exactly `back` frames earlier).
+  auto history = [&](long target, long limit) {
+    std::unordered_map<long, std::pair<long, Vec2>> at;  // id -> (frame, position)
+    for (long f = target; f >= limit; --f) {
+      auto [b, e] = t.frame(f);
+      for (auto p = b; p != e; ++p) at.emplace(p->id, std::make_pair(f, Vec2(p->x, p->y)));
+    }
+    return at;
+  };
+  const auto before = history(frame - back, frame - 2 * back);
+  const auto long_before = history(frame - back_s, frame - 2 * back_s);
   auto [b, e] = t.frame(frame);
   for (auto p = b; p != e; ++p) {
     auto it = before.find(p->id);
@@ -28,10 +34,11 @@ ObservedState observe_at(const TrajectorySet& t, long frame, double velocity_win
     Vec2 x(p->x, p->y);
     s.ids.push_back(p->id);
     s.x.push_back(x);
-    s.v.push_back((x - it->second) * (t.framerate / static_cast<double>(back)));
+    s.v.push_back((x - it->second.second) * (t.framerate / static_cast<double>(frame - it->second.first)));
     auto il = long_before.find(p->id);
-    s.speed.push_back(il != long_before.end() ? (x - il->second).norm() * (t.framerate / static_cast<double>(back_s))
-                                              : s.v.back().norm());
+    s.speed.push_back(il != long_before.end()
+                          ? (x - il->second.second).norm() * (t.framerate / static_cast<double>(frame - il->second.first))
+                          : s.v.back().norm());
   }
   return s;
 }

@@ -43,6 +43,20 @@ TEST_CASE("constant velocity is exact on straight walkers, and masks people who 
   CHECK(r.horizons[0].samples == 3 + 3 + 2 + 2);
 }
 
+TEST_CASE("velocities and walking speeds from a recording sampled every third frame", "[predict]") {
+  // As ETH/UCY's files, which keep every 10th frame: no row lies exactly 0.5 s or 1 s back.
+  std::ostringstream text;
+  text << "# framerate: 10\n";
+  for (int f = 0; f <= 60; f += 3) text << "1 " << f << " " << 1 + 0.1 * f << " 2\n";
+  TrajectorySet t = TrajectorySet::parse(text.str(), "sparse");
+  ObservedState s = observe_at(t, 30, 0.5, 1.0);
+  REQUIRE(s.ids.size() == 1);
+  CHECK(s.v[0].x() == Approx(1.0));
+  CHECK(s.v[0].y() == Approx(0.0).margin(1e-12));
+  CHECK(s.speed[0] == Approx(1.0));
+  CHECK(observe_at(t, 31, 0.5, 1.0).ids.empty());  // nobody recorded at frame 31
+}
+
 TEST_CASE("a predictor that is off by a fixed offset reports that offset", "[predict]") {
   TrajectorySet t = straight_walkers();
   PredictOptions o;
