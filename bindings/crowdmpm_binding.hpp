@@ -19,6 +19,12 @@ inline void check(cmpm_Status s) {
 inline std::string version() { return cmpm_GetVersion(); }
 inline int abi_version() { return cmpm_GetAbiVersion(); }
 
+// Learns a model from recorded trajectories (cmpm_TrainModel; request format in
+// docs/learning.md) and writes it to out_model_path; raises with the library's message.
+inline void train_model(const std::string& request_json, const std::string& out_model_path) {
+  check(cmpm_TrainModel(request_json.c_str(), out_model_path.c_str()));
+}
+
 class World {
  public:
   // scenario: a file path, or JSON text if it starts with '{'. model: "" (the scenario's or the

@@ -12,6 +12,7 @@
 
 #include "engine/fields.hpp"
 #include "engine/simulation.hpp"
+#include "engine/train.hpp"
 
 using namespace crowdmpm;
 
@@ -390,6 +391,18 @@ cmpm_Status cmpm_World_LoadTraction(cmpm_WorldId world, const char* traction_jso
       fail(CMPM_ERROR_INVALID_ARGUMENT, std::string("the ") + material_name(sim.model().material) + " material has no traction network");
     json j = parse_json_text(traction_json, "<traction>");
     sim.mutable_model().traction = TractionNet::parse(JsonReader(j, "traction"));
+  });
+}
+
+cmpm_Status cmpm_TrainModel(const char* request_json, const char* out_model_path) {
+  return guard("cmpm_TrainModel", CMPM_ERROR_INVALID_INPUT, [&] {
+    require(request_json, "request_json");
+    require(out_model_path, "out_model_path");
+    if (!*out_model_path) fail(CMPM_ERROR_INVALID_ARGUMENT, "out_model_path is empty");
+    const json j = parse_json_text(request_json, "<train request>");
+    const TrainJob job = parse_train_job(j);
+    const TrainResult r = train_model(job.data, job.start, job.options);
+    save_model(describe_learned(job, r), out_model_path);
   });
 }
 

@@ -396,26 +396,31 @@ int cmd_train(const Args& a) {
     const std::filesystem::path dir = std::filesystem::absolute(a.out).parent_path();
     if (!std::filesystem::is_directory(dir)) throw Error("cannot write " + a.out + ": folder " + dir.string() + " does not exist");
   }
-  std::vector<TrainDataset> data;
+  TrainJob job;
   for (const auto& [scen, trajs] : a.datasets) {
     if (scen.empty()) usage_error("--trajectories must follow the --scenario they were recorded in");
     if (trajs.empty()) usage_error("--scenario " + scen + " has no --trajectories after it");
     TrainDataset d{ScenarioDef::load(scen), {}};
-    for (const auto& f : trajs) d.recordings.push_back(TrajectorySet::read(f));
-    data.push_back(std::move(d));
+    for (const auto& f : trajs) {
+      d.recordings.push_back(TrajectorySet::read(f));
+      job.files.push_back(f);
+    }
+    job.data.push_back(std::move(d));
   }
   if (!a.model.empty() && !a.material.empty()) usage_error("train takes --model or --material, not both");
-  Model start = !a.model.empty()    ? Model::load(a.model)
-                : !a.material.empty() ? Model::default_of(a.material)
-                                      : data[0].scenario.model_or_default();
-  TrainOptions o = a.train;
+  job.start = !a.model.empty()    ? Model::load(a.model)
+              : !a.material.empty() ? Model::default_of(a.material)
+                                    : job.data[0].scenario.model_or_default();
+  TrainOptions& o = job.options;
+  o = a.train;
   if (a.stride_given) o.stride = a.stride;
   o.threads = a.threads;
   o.desired_speed = desired_speed_of(a);
   const bool show = !a.quiet;
-  if (show) std::printf("training %s material from %zu scenario(s); windows of %g s every %g s\n", material_name(start.material),
-                        data.size(), o.window, o.stride);
-  TrainResult r = train_model(data, start, o, [&](const TrainProgress& p) {
+  if (show)
+    std::printf("training %s material from %zu scenario(s); windows of %g s every %g s\n", material_name(job.start.material),
+                job.data.size(), o.window, o.stride);
+  TrainResult r = train_model(job.data, job.start, o, [&](const TrainProgress& p) {
     if (!show) return;
     if (std::isnan(p.validation_loss))
       std::printf("  iter %4d  train loss %.5f  |grad| %.3g\n", p.iteration, p.train_loss, p.grad_norm);
@@ -424,30 +429,15 @@ int cmd_train(const Args& a) {
                   p.grad_norm, p.validation_loss, p.improved ? "  (best)" : "");
     std::fflush(stdout);
   });
-  Model m = r.model;
-  m.name = std::string("learned ") + material_name(m.material);
-  std::string from;
-  for (const auto& [scen, trajs] : a.datasets)
-    for (const auto& f : trajs) from += (from.empty() ? "" : ", ") + std::filesystem::path(f).filename().string();
+  const Model m = describe_learned(job, r);
+  save_model(m, a.out);
   const bool traj = o.loss == TrainOptions::Loss::Trajectory;
-  const char* loss_name = traj ? "trajectory" : "grid velocity";
-  const char* loss_unit = traj ? "m2" : "(m/s)2";
-  m.description = "Learned by crowdmpm train from " + from + " (" + std::to_string(r.train_windows) + " training, " +
-                  std::to_string(r.validation_windows) + " validation windows of " + format_number(o.window) +
-                  " s); validation " + loss_name + " loss " + format_number(r.initial_validation) + " " + loss_unit +
-                  " at the start, " + format_number(r.best_validation) + " at iteration " + std::to_string(r.best_iteration) +
-                  " of " + std::to_string(r.iterations) + ".";
-  std::ofstream out(a.out);
-  if (!out) throw Error("cannot write " + a.out);
-  out << m.to_json().dump(2) << "\n";
-  out.close();
-  if (!out) throw Error("writing " + a.out + " failed");
   std::printf("validation %s loss %.5f -> %.5f %s (best at iteration %d of %d%s); %ld windows skipped; wrote %s\n",
-              loss_name, r.initial_validation, r.best_validation, loss_unit, r.best_iteration, r.iterations,
-              r.early_stopped ? ", stopped early" : "", r.skipped_windows, a.out.c_str());
+              traj ? "trajectory" : "grid velocity", r.initial_validation, r.best_validation, traj ? "m2" : "(m/s)2",
+              r.best_iteration, r.iterations, r.early_stopped ? ", stopped early" : "", r.skipped_windows, a.out.c_str());
   const ParamMap learned(m, o.params, false);
   for (const auto& name : learned.scalars())
-    std::printf("  %-18s %.5g (start %.5g)\n", name.c_str(), m.get(name), start.get(name));
+    std::printf("  %-18s %.5g (start %.5g)\n", name.c_str(), m.get(name), job.start.get(name));
   return 0;
 }
 

@@ -4,6 +4,7 @@
 #include "engine/optim.hpp"
 
 #include <algorithm>
+#include <fstream>
 #include <cmath>
 #include <limits>
 
@@ -526,6 +527,96 @@ TrainResult train_on_windows(const std::vector<ScenarioDef>& scenarios, const st
     if (res.early_stopped) break;
   }
   return res;
+}
+
+namespace {
+std::string resolve_path(const std::string& base, const std::string& p) {
+  if (base.empty() || p.empty() || p[0] == '/') return p;
+  return base + "/" + p;
+}
+}  // namespace
+
+TrainJob parse_train_job(const json& request, const std::string& base_dir) {
+  JsonReader r(request, "");
+  r.require_object();
+  r.allow_only({"datasets", "model", "material", "options"});
+  TrainJob job;
+  JsonReader ds = r.at("datasets");
+  if (ds.size() == 0) ds.fail("needs at least one {\"scenario\", \"trajectories\"} entry");
+  for (size_t i = 0; i < ds.size(); ++i) {
+    JsonReader d = ds.item(i);
+    d.require_object();
+    d.allow_only({"scenario", "trajectories"});
+    TrainDataset set{ScenarioDef::load(resolve_path(base_dir, d.string("scenario", std::nullopt))), {}};
+    JsonReader ts = d.at("trajectories");
+    if (ts.size() == 0) ts.fail("needs at least one trajectory file");
+    for (size_t k = 0; k < ts.size(); ++k) {
+      const std::string f = resolve_path(base_dir, ts.item(k).as_string());
+      set.recordings.push_back(TrajectorySet::read(f));
+      job.files.push_back(f);
+    }
+    job.data.push_back(std::move(set));
+  }
+  if (r.has("model") && r.has("material")) r.fail("give \"model\" or \"material\", not both");
+  if (r.has("model")) job.start = Model::load(resolve_path(base_dir, r.string("model", std::nullopt)));
+  else if (r.has("material"))
+    job.start = Model::default_of(r.one_of("material", {"crowd", "fluid", "social_force"}, std::nullopt));
+  else job.start = job.data[0].scenario.model_or_default();
+  TrainOptions& o = job.options;
+  if (auto op = r.get("options")) {
+    op->require_object();
+    op->allow_only({"window", "stride", "iterations", "batch", "learning_rate", "clip", "validation", "eval_every",
+                    "patience", "seed", "threads", "params", "learn_network", "loss", "desired_speed"});
+    o.window = op->in_range("window", 1e-3, 1e4, o.window);
+    o.stride = op->in_range("stride", 1e-3, 1e4, o.stride);
+    o.iterations = op->integer("iterations", 1, 1000000, o.iterations);
+    o.batch = op->integer("batch", 1, 10000, o.batch);
+    o.learning_rate = op->in_range("learning_rate", 1e-9, 10, o.learning_rate);
+    o.clip_norm = op->in_range("clip", 0, 1e12, o.clip_norm);
+    o.validation_fraction = op->in_range("validation", 0.01, 0.9, o.validation_fraction);
+    o.eval_every = op->integer("eval_every", 1, 1000000, o.eval_every);
+    o.patience = op->integer("patience", 1, 1000000, o.patience);
+    o.seed = static_cast<uint64_t>(op->integer("seed", 0, 2000000000, static_cast<long>(o.seed)));
+    o.threads = op->integer("threads", 1, 256, o.threads);
+    o.learn_network = op->boolean("learn_network", o.learn_network);
+    o.loss = op->one_of("loss", {"trajectory", "grid_velocity"}, "trajectory") == "trajectory" ? TrainOptions::Loss::Trajectory
+                                                                                                : TrainOptions::Loss::GridVelocity;
+    o.desired_speed = op->one_of("desired_speed", {"observed", "scenario"}, "observed") == "observed"
+                          ? DesiredSpeed::Observed
+                          : DesiredSpeed::Scenario;
+    if (auto ps = op->get("params")) {
+      for (size_t i = 0; i < ps->size(); ++i) o.params.push_back(ps->item(i).as_string());
+      if (o.params.empty()) ps->fail("needs at least one parameter name");
+    }
+  }
+  ParamMap check(job.start, o.params, o.learn_network);  // unknown or unlearnable names fail here
+  return job;
+}
+
+Model describe_learned(const TrainJob& job, const TrainResult& r) {
+  Model m = r.model;
+  m.name = std::string("learned ") + material_name(m.material);
+  std::string from;
+  for (const auto& f : job.files) {
+    const size_t slash = f.find_last_of('/');
+    from += (from.empty() ? "" : ", ") + (slash == std::string::npos ? f : f.substr(slash + 1));
+  }
+  const bool traj = job.options.loss == TrainOptions::Loss::Trajectory;
+  m.description = "Learned by crowdmpm train from " + from + " (" + std::to_string(r.train_windows) + " training, " +
+                  std::to_string(r.validation_windows) + " validation windows of " + format_number(job.options.window) +
+                  " s); validation " + (traj ? "trajectory" : "grid velocity") + " loss " +
+                  format_number(r.initial_validation) + " " + (traj ? "m2" : "(m/s)2") + " at the start, " +
+                  format_number(r.best_validation) + " at iteration " + std::to_string(r.best_iteration) + " of " +
+                  std::to_string(r.iterations) + ".";
+  return m;
+}
+
+void save_model(const Model& m, const std::string& path) {
+  std::ofstream out(path);
+  if (!out) throw Error("cannot write " + path);
+  out << m.to_json().dump(2) << "\n";
+  out.close();
+  if (!out) throw Error("writing " + path + " failed");
 }
 
 }  // namespace crowdmpm

@@ -131,4 +131,25 @@ TrainResult train_on_windows(const std::vector<ScenarioDef>& scenarios, const st
                              const std::vector<TrainWindow>& validation, const Model& start, const TrainOptions& o,
                              const TrainCallback& progress = nullptr);
 
+// A training job (what `crowdmpm train` and the C ABI's cmpm_TrainModel run), from JSON:
+//   {"datasets": [{"scenario": PATH, "trajectories": [PATH, ...]}, ...],
+//    "model": PATH (start; default: the first scenario's model),
+//    "material": "crowd" | "fluid" | "social_force" (start from that kind's defaults instead),
+//    "options": {"window", "stride", "iterations", "batch", "learning_rate", "clip",
+//                "validation", "eval_every", "patience", "seed", "threads", "params",
+//                "learn_network", "loss", "desired_speed"}}
+// Relative paths resolve from base_dir. Errors name the JSON path (docs/learning.md).
+struct TrainJob {
+  std::vector<TrainDataset> data;
+  std::vector<std::string> files;  // the recordings, for the learned model's description
+  Model start;
+  TrainOptions options;
+};
+TrainJob parse_train_job(const json& request, const std::string& base_dir = "");
+// The best model of a run, named "learned <kind>" and described: what it was learned from and
+// its validation loss before and after.
+Model describe_learned(const TrainJob& job, const TrainResult& r);
+// Writes a model JSON file; throws Error naming the path if it cannot.
+void save_model(const Model& m, const std::string& path);
+
 }  // namespace crowdmpm

@@ -1,6 +1,6 @@
 """Python binding test: the drill gives the same state hash as the C test, bulk reads come back
-as numpy arrays, and errors (bad JSON, stale agent id, null or destroyed world) raise
-RuntimeError with the library's message.
+as numpy arrays, errors (bad JSON, stale agent id, null or destroyed world) raise
+RuntimeError with the library's message, and a model can be learned (train_model).
 
 usage: test_crowdmpm.py DRILL_JSON STEPS EXPECTED_HASH_HEX"""
 import sys
@@ -61,6 +61,28 @@ class Bindings(unittest.TestCase):
             w.step(1)
         with self.assertRaisesRegex(RuntimeError, "unknown field"):
             crowdmpm.World(DRILL).field("temperature")
+
+    def test_train_model(self):
+        # People walking down the bottleneck corridor, written here, then fitted.
+        import json, os, tempfile
+        tmp = tempfile.mkdtemp()
+        traj = os.path.join(tmp, "walkers.txt")
+        with open(traj, "w") as f:
+            f.write("# framerate: 10\n")
+            for frame in range(121):
+                for i in range(12):
+                    f.write("%d %d %.4f %.4f 0\n" % (i + 1, frame, -2.0 + 0.8 * (i % 6), 6.0 - 0.6 * (i // 6) - 0.03 * frame))
+        scenario = os.path.join(os.path.dirname(DRILL), "bottleneck.json")
+        request = {"datasets": [{"scenario": scenario, "trajectories": [traj]}],
+                   "options": {"window": 1, "iterations": 2, "params": ["tau", "v0_scale"], "learn_network": False}}
+        out = os.path.join(tmp, "model.json")
+        crowdmpm.train_model(json.dumps(request), out)
+        with open(out) as f:
+            self.assertEqual(json.load(f)["name"], "learned crowd")
+        crowdmpm.World(scenario, out).step(1)  # the learned model loads as it is
+        with self.assertRaisesRegex(RuntimeError, "options.window"):
+            request["options"]["window"] = -1
+            crowdmpm.train_model(json.dumps(request), out)
 
     def test_docstrings(self):
         self.assertIn("advance", crowdmpm.World.step.__doc__)

@@ -208,15 +208,65 @@ static void test_misuse(void) {
   CHECK(cmpm_GetAbiVersion() == CMPM_ABI_VERSION);
 }
 
+/* Learning through the ABI: a recording of people walking down the bottleneck corridor, written
+ * here, is fitted; the model file loads as a world's model; bad requests are errors. */
+static char repo_dir[4096];
+static void test_train(void) {
+  char traj[64], scen[8192], request[32768], model[] = "capi_learned_model.json";
+  snprintf(traj, sizeof traj, "capi_walkers.txt");
+  snprintf(scen, sizeof scen, "%s/scenarios/bottleneck.json", repo_dir);
+  FILE* f = fopen(traj, "w");
+  CHECK(f != NULL);
+  if (!f) return;
+  fprintf(f, "# framerate: 10\n# unit: m\n");
+  for (int frame = 0; frame <= 120; ++frame)
+    for (int id = 1; id <= 12; ++id) {
+      const double x = -2.0 + 0.8 * ((id - 1) % 6), y = 6.0 - 0.6 * ((id - 1) / 6) - 0.03 * frame;
+      fprintf(f, "%d %d %.4f %.4f 0\n", id, frame, x, y);
+    }
+  fclose(f);
+  snprintf(request, sizeof request,
+           "{\"datasets\": [{\"scenario\": \"%s\", \"trajectories\": [\"%s\"]}],"
+           " \"options\": {\"window\": 1, \"iterations\": 2, \"params\": [\"tau\", \"v0_scale\"],"
+           " \"learn_network\": false, \"threads\": 2}}",
+           scen, traj);
+  remove(model);
+  CHECK(cmpm_TrainModel(request, model) == CMPM_OK);
+  cmpm_WorldDef def = cmpm_DefaultWorldDef();
+  cmpm_WorldId w = {0, 0};
+  def.scenario_path = scen;
+  def.model_path = model;
+  CHECK(cmpm_CreateWorld(&def, &w) == CMPM_OK);
+  double v0 = 0;
+  CHECK(cmpm_World_GetParameter(w, "v0_scale", &v0) == CMPM_OK);
+  CHECK(v0 > 0.5 && v0 < 2); /* the learned model's, within the trainer's reach of the start */
+  CHECK(cmpm_DestroyWorld(w) == CMPM_OK);
+  /* Misuse and bad requests. */
+  CHECK_FAILS(cmpm_TrainModel(NULL, model), CMPM_ERROR_INVALID_ARGUMENT, "request_json");
+  CHECK_FAILS(cmpm_TrainModel(request, NULL), CMPM_ERROR_INVALID_ARGUMENT, "out_model_path");
+  CHECK_FAILS(cmpm_TrainModel("{\"datasets\": [", model), CMPM_ERROR_INVALID_INPUT, "invalid JSON");
+  CHECK_FAILS(cmpm_TrainModel("{\"datasets\": []}", model), CMPM_ERROR_INVALID_INPUT, "datasets");
+  CHECK_FAILS(cmpm_TrainModel("{\"datasets\": [{\"scenario\": \"nowhere.json\", \"trajectories\": [\"x\"]}]}", model),
+              CMPM_ERROR_INVALID_INPUT, "nowhere.json");
+  snprintf(request, sizeof request,
+           "{\"datasets\": [{\"scenario\": \"%s\", \"trajectories\": [\"%s\"]}], \"options\": {\"window\": -1}}", scen, traj);
+  CHECK_FAILS(cmpm_TrainModel(request, model), CMPM_ERROR_INVALID_INPUT, "options.window");
+  snprintf(request, sizeof request,
+           "{\"datasets\": [{\"scenario\": \"%s\", \"trajectories\": [\"%s\"]}], \"options\": {\"params\": [\"nonsense\"]}}", scen, traj);
+  CHECK_FAILS(cmpm_TrainModel(request, model), CMPM_ERROR_INVALID_INPUT, "nonsense");
+}
+
 int main(int argc, char** argv) {
   if (argc != 2) {
     fprintf(stderr, "usage: test_capi REPO_DIR\n");
     return 2;
   }
   snprintf(drill_path, sizeof drill_path, "%s/scenarios/drill.json", argv[1]);
+  snprintf(repo_dir, sizeof repo_dir, "%s", argv[1]);
   test_hash_and_bulk_reads();
   test_agents_and_parameters();
   test_misuse();
+  test_train();
   printf("capi: %d passed, %d failed\n", passed, failed);
   return failed ? 1 : 0;
 }

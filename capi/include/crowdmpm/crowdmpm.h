@@ -155,6 +155,21 @@ CMPM_API cmpm_Status cmpm_World_SetParameter(cmpm_WorldId world, const char* nam
 /* Replace the traction network from JSON: {"layers": [...]} or {"constant": K}. */
 CMPM_API cmpm_Status cmpm_World_LoadTraction(cmpm_WorldId world, const char* traction_json);
 
+/* Learning (docs/learning.md): fits a model to recorded trajectories by gradient descent
+ * through the simulator, as `crowdmpm train` does, and writes the learned model JSON (which
+ * cmpm_CreateWorld loads as model_path) to out_model_path. request_json:
+ *   {"datasets": [{"scenario": PATH, "trajectories": [PATH, ...]}, ...],
+ *    "model": PATH  or  "material": "crowd" | "fluid" | "social_force"   (optional start),
+ *    "options": {"window": 2, "stride": 1, "iterations": 120, "batch": 4, "learning_rate": 0.03,
+ *                "clip": 1, "validation": 0.25, "eval_every": 5, "patience": 6, "seed": 1,
+ *                "threads": 1, "params": [NAME, ...], "learn_network": true,
+ *                "loss": "trajectory" | "grid_velocity", "desired_speed": "observed" | "scenario"}}
+ * Relative paths resolve from the working directory. Blocks until training ends (seconds to
+ * minutes); the result does not depend on "threads". CMPM_ERROR_INVALID_INPUT for a request,
+ * scenario, model or recording that does not parse or validate (the message names the JSON
+ * path, or the file and line), or recordings too short for training and validation windows. */
+CMPM_API cmpm_Status cmpm_TrainModel(const char* request_json, const char* out_model_path);
+
 #ifdef __cplusplus
 }
 #endif
