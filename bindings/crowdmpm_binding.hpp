@@ -25,6 +25,12 @@ inline void train_model(const std::string& request_json, const std::string& out_
   check(cmpm_TrainModel(request_json.c_str(), out_model_path.c_str()));
 }
 
+// Predicts a recording with constant velocity, the scenario's model and the models given
+// (cmpm_PredictRecording) and writes the errors as JSON to out_json_path.
+inline void predict_recording(const std::string& request_json, const std::string& out_json_path) {
+  check(cmpm_PredictRecording(request_json.c_str(), out_json_path.c_str()));
+}
+
 class World {
  public:
   // scenario: a file path, or JSON text if it starts with '{'. model: "" (the scenario's or the

@@ -12,7 +12,10 @@
 
 #include "engine/fields.hpp"
 #include "engine/simulation.hpp"
+#include "engine/predict.hpp"
 #include "engine/train.hpp"
+
+#include <fstream>
 
 using namespace crowdmpm;
 
@@ -403,6 +406,22 @@ cmpm_Status cmpm_TrainModel(const char* request_json, const char* out_model_path
     const TrainJob job = parse_train_job(j);
     const TrainResult r = train_model(job.data, job.start, job.options);
     save_model(describe_learned(job, r), out_model_path);
+  });
+}
+
+cmpm_Status cmpm_PredictRecording(const char* request_json, const char* out_json_path) {
+  return guard("cmpm_PredictRecording", CMPM_ERROR_INVALID_INPUT, [&] {
+    require(request_json, "request_json");
+    require(out_json_path, "out_json_path");
+    if (!*out_json_path) fail(CMPM_ERROR_INVALID_ARGUMENT, "out_json_path is empty");
+    const json j = parse_json_text(request_json, "<predict request>");
+    const PredictJob job = parse_predict_job(j);
+    const json report = prediction_json(job, run_prediction(job));
+    std::ofstream out(out_json_path);
+    if (!out) fail(CMPM_ERROR_INVALID_ARGUMENT, std::string("cannot write ") + out_json_path);
+    out << report.dump(2) << "\n";
+    out.close();
+    if (!out) fail(CMPM_ERROR_INVALID_ARGUMENT, std::string("writing ") + out_json_path + " failed");
   });
 }
 

@@ -301,12 +301,6 @@ DesiredSpeed desired_speed_of(const Args& a) {
   return a.desired_speed == "scenario" ? DesiredSpeed::Scenario : DesiredSpeed::Observed;
 }
 
-// A model's label in tables: its name and material.
-std::string model_label(const Model& m) {
-  const std::string kind = material_name(m.material);
-  if (m.name.empty()) return kind;
-  return m.name.find(kind) == std::string::npos ? m.name + " (" + kind + ")" : m.name;
-}
 
 int cmd_predict(const Args& a) {
   if (a.help) { std::fputs(kPredictHelp, stdout); return 0; }
@@ -318,26 +312,25 @@ int cmd_predict(const Args& a) {
   }
   if (n_scen > 1 || n_traj > 1) usage_error("predict takes one --scenario and one --trajectories file");
   if (!a.positional.empty()) usage_error("predict takes no positional arguments (got '" + a.positional[0] + "')");
-  ScenarioDef s = ScenarioDef::load(a.scenario);
-  std::vector<Model> models = {s.model_or_default()};
-  models[0].name = !s.model ? std::string("untrained default")
-                            : "scenario's model " + (models[0].name.empty() ? std::string("") : models[0].name);
-  for (const auto& path : a.models) models.push_back(Model::load(path));
-  TrajectorySet t = TrajectorySet::read(a.trajectories);
-  PredictOptions o;
-  o.observe = a.observe;
-  o.horizon = a.horizon;
-  o.stride = a.stride > 0 ? a.stride : a.horizon;
-  o.threads = a.threads;
-  o.max_windows = a.windows;
-  if (o.observe + o.horizon > t.duration())
-    usage_error("--observe + --horizon (" + format_number(o.observe + o.horizon) + " s) exceed the recording (" +
-                format_number(t.duration()) + " s)");
+  PredictOptions po;
+  po.observe = a.observe;
+  po.horizon = a.horizon;
+  po.stride = a.stride > 0 ? a.stride : a.horizon;
+  po.threads = a.threads;
+  po.max_windows = a.windows;
+  {
+    TrajectorySet probe = TrajectorySet::read(a.trajectories);
+    if (po.observe + po.horizon > probe.duration())
+      usage_error("--observe + --horizon (" + format_number(po.observe + po.horizon) + " s) exceed the recording (" +
+                  format_number(probe.duration()) + " s)");
+  }
+  const PredictJob job = make_predict_job(a.scenario, a.trajectories, a.models, po, desired_speed_of(a));
+  const ScenarioDef& s = job.scenario;
+  const TrajectorySet& t = job.recording;
+  const PredictOptions& o = job.options;
+  const std::vector<Model>& models = job.models;
   const WindowOptions wo{a.threads, desired_speed_of(a)};
-  Grid grid;
-  grid.init(s.geo, s.cell_size);
-  std::vector<PredictionReport> reports = {evaluate_predictor("constant velocity", t, o, constant_velocity_predictor(), &grid)};
-  for (const auto& m : models) reports.push_back(evaluate_predictor(model_label(m), t, o, simulation_predictor(s, m, wo), &grid));
+  const std::vector<PredictionReport> reports = run_prediction(job);
   std::printf("%s: %zu people, %.1f s at %g fps; %ld windows of %g s; desired speed %s\n", a.trajectories.c_str(),
               t.person_count(), t.duration(), t.framerate, reports[0].windows, o.horizon, a.desired_speed.c_str());
   std::printf("%-34s", "method");
@@ -350,11 +343,7 @@ int cmd_predict(const Args& a) {
   }
   if (!a.out.empty()) {
     std::filesystem::create_directories(a.out);
-    json j = {{"scenario", a.scenario}, {"trajectories", a.trajectories}, {"observe_s", o.observe},
-              {"horizon_s", o.horizon}, {"stride_s", o.stride}, {"desired_speed", a.desired_speed},
-              {"units", "metres, m/s"}, {"methods", json::array()}};
-    for (const auto& r : reports) j["methods"].push_back(report_to_json(r));
-    std::ofstream(a.out + "/prediction.json") << j.dump(2) << "\n";
+    std::ofstream(a.out + "/prediction.json") << prediction_json(job, reports).dump(2) << "\n";
     // Paths of the first window: recorded, constant velocity, the first model given (else the default).
     long f0 = t.frame_min() + std::lround(o.observe * t.framerate);
     ObservedState st = observe_at(t, f0, o.velocity_window, o.speed_window);

@@ -230,4 +230,75 @@ json report_to_json(const PredictionReport& r) {
   return {{"method", r.method}, {"windows", r.windows}, {"horizons", h}};
 }
 
+std::string model_label(const Model& m) {
+  const std::string kind = material_name(m.material);
+  if (m.name.empty()) return kind;
+  return m.name.find(kind) == std::string::npos ? m.name + " (" + kind + ")" : m.name;
+}
+
+PredictJob make_predict_job(const std::string& scenario_path, const std::string& trajectories_path,
+                            const std::vector<std::string>& model_paths, const PredictOptions& o, DesiredSpeed ds) {
+  PredictJob job;
+  job.scenario_path = scenario_path;
+  job.trajectories_path = trajectories_path;
+  job.scenario = ScenarioDef::load(scenario_path);
+  job.models.push_back(job.scenario.model_or_default());
+  job.models[0].name = !job.scenario.model ? std::string("untrained default")
+                                           : "scenario's model " + job.models[0].name;
+  for (const auto& p : model_paths) job.models.push_back(Model::load(p));
+  job.recording = TrajectorySet::read(trajectories_path);
+  job.options = o;
+  job.desired_speed = ds;
+  if (!(o.observe > 0 && o.horizon > 0 && o.stride > 0))
+    throw Error("observe, horizon and stride must be > 0 s");
+  if (o.observe + o.horizon > job.recording.duration())
+    throw Error("observe + horizon (" + format_number(o.observe + o.horizon) + " s) exceed the recording " +
+                trajectories_path + " (" + format_number(job.recording.duration()) + " s)");
+  return job;
+}
+
+PredictJob parse_predict_job(const json& request) {
+  JsonReader r(request, "");
+  r.require_object();
+  r.allow_only({"scenario", "trajectories", "models", "observe", "horizon", "stride", "windows", "threads", "desired_speed"});
+  const std::string scenario = r.string("scenario", std::nullopt);  // first: errors name the first key
+  const std::string trajectories = r.string("trajectories", std::nullopt);
+  PredictOptions o;
+  o.observe = r.in_range("observe", 1e-3, 1e5, 2.0);
+  o.horizon = r.in_range("horizon", 1e-3, 1e5, 4.0);
+  o.stride = r.in_range("stride", 1e-3, 1e5, o.horizon);
+  o.max_windows = r.integer("windows", 0, 1000000, 0);
+  o.threads = r.integer("threads", 1, 256, 1);
+  std::vector<std::string> models;
+  if (auto ms = r.get("models"))
+    for (size_t i = 0; i < ms->size(); ++i) models.push_back(ms->item(i).as_string());
+  const DesiredSpeed ds =
+      r.one_of("desired_speed", {"observed", "scenario"}, "observed") == "observed" ? DesiredSpeed::Observed : DesiredSpeed::Scenario;
+  return make_predict_job(scenario, trajectories, models, o, ds);
+}
+
+std::vector<PredictionReport> run_prediction(const PredictJob& job) {
+  Grid grid;
+  grid.init(job.scenario.geo, job.scenario.cell_size);
+  const WindowOptions wo{job.options.threads, job.desired_speed};
+  std::vector<PredictionReport> reports = {
+      evaluate_predictor("constant velocity", job.recording, job.options, constant_velocity_predictor(), &grid)};
+  for (const auto& m : job.models)
+    reports.push_back(evaluate_predictor(model_label(m), job.recording, job.options, simulation_predictor(job.scenario, m, wo), &grid));
+  return reports;
+}
+
+json prediction_json(const PredictJob& job, const std::vector<PredictionReport>& reports) {
+  json j = {{"scenario", job.scenario_path},
+            {"trajectories", job.trajectories_path},
+            {"observe_s", job.options.observe},
+            {"horizon_s", job.options.horizon},
+            {"stride_s", job.options.stride},
+            {"desired_speed", job.desired_speed == DesiredSpeed::Observed ? "observed" : "scenario"},
+            {"units", "metres, m/s"},
+            {"methods", json::array()}};
+  for (const auto& r : reports) j["methods"].push_back(report_to_json(r));
+  return j;
+}
+
 }  // namespace crowdmpm

@@ -90,4 +90,28 @@ Predictor simulation_predictor(const ScenarioDef& scenario, const Model& model, 
 
 json report_to_json(const PredictionReport& r);
 
+// A model's label in tables: its name, with its kind when the name does not say it.
+std::string model_label(const Model& m);
+
+// A prediction job (what `crowdmpm predict` and the C ABI's cmpm_PredictRecording run): a
+// recording in a scenario's venue, rolled forward by constant velocity, the scenario's own
+// model (labelled "untrained default" when it is the built-in one) and every model given.
+struct PredictJob {
+  std::string scenario_path, trajectories_path;
+  ScenarioDef scenario;
+  TrajectorySet recording;
+  std::vector<Model> models;  // the scenario's first, then the models given
+  PredictOptions options;
+  DesiredSpeed desired_speed = DesiredSpeed::Observed;
+};
+// Loads the scenario and recording, checks that observe + horizon fit the recording.
+PredictJob make_predict_job(const std::string& scenario_path, const std::string& trajectories_path,
+                            const std::vector<std::string>& model_paths, const PredictOptions& o, DesiredSpeed ds);
+// From JSON: {"scenario": PATH, "trajectories": PATH, "models": [PATH, ...], "observe": 2,
+// "horizon": 4, "stride": (horizon), "windows": 0, "threads": 1, "desired_speed": "observed"}.
+PredictJob parse_predict_job(const json& request);
+std::vector<PredictionReport> run_prediction(const PredictJob& job);
+// The reports as written to prediction.json.
+json prediction_json(const PredictJob& job, const std::vector<PredictionReport>& reports);
+
 }  // namespace crowdmpm

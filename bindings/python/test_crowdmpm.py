@@ -1,6 +1,7 @@
 """Python binding test: the drill gives the same state hash as the C test, bulk reads come back
 as numpy arrays, errors (bad JSON, stale agent id, null or destroyed world) raise
-RuntimeError with the library's message, and a model can be learned (train_model).
+RuntimeError with the library's message, and a model can be learned and a recording predicted
+(train_model, predict_recording).
 
 usage: test_crowdmpm.py DRILL_JSON STEPS EXPECTED_HASH_HEX"""
 import sys
@@ -80,6 +81,12 @@ class Bindings(unittest.TestCase):
         with open(out) as f:
             self.assertEqual(json.load(f)["name"], "learned crowd")
         crowdmpm.World(scenario, out).step(1)  # the learned model loads as it is
+        report = os.path.join(tmp, "prediction.json")
+        crowdmpm.predict_recording(json.dumps({"scenario": scenario, "trajectories": traj, "models": [out],
+                                               "observe": 2, "horizon": 3}), report)
+        with open(report) as f:
+            methods = [m["method"] for m in json.load(f)["methods"]]
+        self.assertEqual(methods, ["constant velocity", "untrained default (crowd)", "learned crowd"])
         with self.assertRaisesRegex(RuntimeError, "options.window"):
             request["options"]["window"] = -1
             crowdmpm.train_model(json.dumps(request), out)

@@ -241,6 +241,29 @@ static void test_train(void) {
   CHECK(cmpm_World_GetParameter(w, "v0_scale", &v0) == CMPM_OK);
   CHECK(v0 > 0.5 && v0 < 2); /* the learned model's, within the trainer's reach of the start */
   CHECK(cmpm_DestroyWorld(w) == CMPM_OK);
+  /* Predict the recording with the learned model. */
+  snprintf(request, sizeof request,
+           "{\"scenario\": \"%s\", \"trajectories\": \"%s\", \"models\": [\"%s\"], \"observe\": 2, \"horizon\": 3}",
+           scen, traj, model);
+  remove("capi_prediction.json");
+  CHECK(cmpm_PredictRecording(request, "capi_prediction.json") == CMPM_OK);
+  {
+    char text[65536] = {0};
+    FILE* pf = fopen("capi_prediction.json", "r");
+    CHECK(pf != NULL);
+    if (pf) {
+      size_t got = fread(text, 1, sizeof text - 1, pf);
+      fclose(pf);
+      CHECK(got > 0);
+      CHECK(strstr(text, "constant velocity") != NULL);
+      CHECK(strstr(text, "learned crowd") != NULL);
+      CHECK(strstr(text, "ade_m") != NULL);
+    }
+  }
+  CHECK_FAILS(cmpm_PredictRecording(NULL, "x.json"), CMPM_ERROR_INVALID_ARGUMENT, "request_json");
+  CHECK_FAILS(cmpm_PredictRecording("{\"scenario\": 3}", "x.json"), CMPM_ERROR_INVALID_INPUT, "scenario");
+  snprintf(request, sizeof request, "{\"scenario\": \"%s\", \"trajectories\": \"%s\", \"observe\": 10, \"horizon\": 10}", scen, traj);
+  CHECK_FAILS(cmpm_PredictRecording(request, "x.json"), CMPM_ERROR_INVALID_INPUT, "exceed the recording");
   /* Misuse and bad requests. */
   CHECK_FAILS(cmpm_TrainModel(NULL, model), CMPM_ERROR_INVALID_ARGUMENT, "request_json");
   CHECK_FAILS(cmpm_TrainModel(request, NULL), CMPM_ERROR_INVALID_ARGUMENT, "out_model_path");

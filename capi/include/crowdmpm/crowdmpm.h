@@ -170,6 +170,16 @@ CMPM_API cmpm_Status cmpm_World_LoadTraction(cmpm_WorldId world, const char* tra
  * path, or the file and line), or recordings too short for training and validation windows. */
 CMPM_API cmpm_Status cmpm_TrainModel(const char* request_json, const char* out_model_path);
 
+/* Prediction (docs/learning.md), as `crowdmpm predict`: rolls a recording's observed states
+ * forward with constant velocity, the scenario's model and every model given, and writes the
+ * errors (ADE/FDE per second of horizon, grid velocity error; the prediction.json format) to
+ * out_json_path. request_json:
+ *   {"scenario": PATH, "trajectories": PATH, "models": [PATH, ...], "observe": 2, "horizon": 4,
+ *    "stride": (horizon), "windows": 0 (all), "threads": 1, "desired_speed": "observed" | "scenario"}
+ * CMPM_ERROR_INVALID_INPUT as for cmpm_TrainModel, and when observe + horizon exceed the
+ * recording. */
+CMPM_API cmpm_Status cmpm_PredictRecording(const char* request_json, const char* out_json_path);
+
 #ifdef __cplusplus
 }
 #endif
