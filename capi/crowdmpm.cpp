@@ -15,8 +15,6 @@
 #include "engine/predict.hpp"
 #include "engine/train.hpp"
 
-#include <fstream>
-
 using namespace crowdmpm;
 
 namespace {
@@ -107,6 +105,14 @@ int behaviour_for(Simulation& sim, const char* target, int32_t group) {
     fail(CMPM_ERROR_INVALID_ARGUMENT, "agent group " + std::to_string(group) + " out of range (the scenario has " +
                                           std::to_string(groups.size()) + " groups and sources); or give a target");
   return group + 1;  // behaviour 0 is "none"; group g's behaviour is g + 1
+}
+
+// The request of a job and the file it writes: both given, the path not empty.
+json job_request(const char* request_json, const char* out_path, const char* out_name, const char* source) {
+  require(request_json, "request_json");
+  require(out_path, out_name);
+  if (!*out_path) fail(CMPM_ERROR_INVALID_ARGUMENT, std::string(out_name) + " is empty");
+  return parse_json_text(request_json, source);
 }
 
 }  // namespace
@@ -399,10 +405,7 @@ cmpm_Status cmpm_World_LoadTraction(cmpm_WorldId world, const char* traction_jso
 
 cmpm_Status cmpm_TrainModel(const char* request_json, const char* out_model_path) {
   return guard("cmpm_TrainModel", CMPM_ERROR_INVALID_INPUT, [&] {
-    require(request_json, "request_json");
-    require(out_model_path, "out_model_path");
-    if (!*out_model_path) fail(CMPM_ERROR_INVALID_ARGUMENT, "out_model_path is empty");
-    const json j = parse_json_text(request_json, "<train request>");
+    const json j = job_request(request_json, out_model_path, "out_model_path", "<train request>");
     const TrainJob job = parse_train_job(j);
     const TrainResult r = train_model(job.data, job.start, job.options);
     save_model(describe_learned(job, r), out_model_path);
@@ -411,17 +414,9 @@ cmpm_Status cmpm_TrainModel(const char* request_json, const char* out_model_path
 
 cmpm_Status cmpm_PredictRecording(const char* request_json, const char* out_json_path) {
   return guard("cmpm_PredictRecording", CMPM_ERROR_INVALID_INPUT, [&] {
-    require(request_json, "request_json");
-    require(out_json_path, "out_json_path");
-    if (!*out_json_path) fail(CMPM_ERROR_INVALID_ARGUMENT, "out_json_path is empty");
-    const json j = parse_json_text(request_json, "<predict request>");
+    const json j = job_request(request_json, out_json_path, "out_json_path", "<predict request>");
     const PredictJob job = parse_predict_job(j);
-    const json report = prediction_json(job, run_prediction(job));
-    std::ofstream out(out_json_path);
-    if (!out) fail(CMPM_ERROR_INVALID_ARGUMENT, std::string("cannot write ") + out_json_path);
-    out << report.dump(2) << "\n";
-    out.close();
-    if (!out) fail(CMPM_ERROR_INVALID_ARGUMENT, std::string("writing ") + out_json_path + " failed");
+    save_json_file(prediction_json(job, run_prediction(job)), out_json_path);
   });
 }
 

@@ -8,7 +8,6 @@
 
 #include <cmath>
 #include <filesystem>
-#include <fstream>
 
 #include "engine/output.hpp"
 #include "engine/predict.hpp"
@@ -318,13 +317,10 @@ int cmd_predict(const Args& a) {
   po.stride = a.stride > 0 ? a.stride : a.horizon;
   po.threads = a.threads;
   po.max_windows = a.windows;
-  {
-    TrajectorySet probe = TrajectorySet::read(a.trajectories);
-    if (po.observe + po.horizon > probe.duration())
-      usage_error("--observe + --horizon (" + format_number(po.observe + po.horizon) + " s) exceed the recording (" +
-                  format_number(probe.duration()) + " s)");
-  }
-  const PredictJob job = make_predict_job(a.scenario, a.trajectories, a.models, po, desired_speed_of(a));
+  const PredictJob job = load_predict_job(a.scenario, a.trajectories, a.models, po, desired_speed_of(a));
+  if (po.observe + po.horizon > job.recording.duration())
+    usage_error("--observe + --horizon (" + format_number(po.observe + po.horizon) + " s) exceed the recording (" +
+                format_number(job.recording.duration()) + " s)");
   const ScenarioDef& s = job.scenario;
   const TrajectorySet& t = job.recording;
   const PredictOptions& o = job.options;
@@ -343,7 +339,7 @@ int cmd_predict(const Args& a) {
   }
   if (!a.out.empty()) {
     std::filesystem::create_directories(a.out);
-    std::ofstream(a.out + "/prediction.json") << prediction_json(job, reports).dump(2) << "\n";
+    save_json_file(prediction_json(job, reports), a.out + "/prediction.json");
     // Paths of the first window: recorded, constant velocity, the first model given (else the default).
     long f0 = t.frame_min() + std::lround(o.observe * t.framerate);
     ObservedState st = observe_at(t, f0, o.velocity_window, o.speed_window);

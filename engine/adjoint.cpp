@@ -91,13 +91,7 @@ struct StencilGrad {
 StencilGrad stencil_grad(const Grid& g, const Vec2& x) {
   StencilGrad r;
   r.s = make_stencil(g.origin, g.dx, g.nx, g.ny, x);
-  const double fx = r.s.fx, fy = r.s.fy, inv = 1 / g.dx;
-  r.dwx[0] = -(1.5 - fx) * inv;
-  r.dwx[1] = -2 * (fx - 1) * inv;
-  r.dwx[2] = (fx - 0.5) * inv;
-  r.dwy[0] = -(1.5 - fy) * inv;
-  r.dwy[1] = -2 * (fy - 1) * inv;
-  r.dwy[2] = (fy - 0.5) * inv;
+  stencil_weight_gradients(r.s, g.dx, r.dwx, r.dwy);
   return r;
 }
 

@@ -14,14 +14,23 @@ struct Stored {
 
 Stored store(const World& w) { return Stored{w.x, w.v, w.heading, w.C, w.J, {}, {}, {}}; }
 
-void restore(World& w, const Stored& s) {
+// The state a step starts from (x, v, C, J) with the given heading.
+void restore_state(World& w, const Stored& s, const std::vector<Vec2>& heading) {
   w.x = s.x;
   w.v = s.v;
   w.C = s.C;
   w.J = s.J;
+  w.heading = heading;
+}
+
+// Into the simulation's own world (checkpoints, the window's end): the heading before the step.
+void restore_state(World& w, const Stored& s) { restore_state(w, s, s.heading); }
+
+// Into the backward pass's scratch world: also what the step's drive and traction produced.
+void restore(World& w, const Stored& s) {
+  restore_state(w, s, s.heading_used);
   w.accel = s.accel;
   w.pair_force = s.force;
-  w.heading = s.heading_used;
 }
 
 // Central-difference Jacobian of a pointwise map R^4 -> R^4 (the projection, the drive): these
@@ -106,12 +115,7 @@ ModelGradient WindowGradient::run(Simulation& sim, int steps, const StateLossGra
       // Entering segment k / K from its end: run it forward again from its checkpoint.
       const int seg = k / K;
       World& sw = sim.world();
-      const Stored& c = checkpoints[static_cast<size_t>(seg)];
-      sw.x = c.x;
-      sw.v = c.v;
-      sw.C = c.C;
-      sw.J = c.J;
-      sw.heading = c.heading;
+      restore_state(sw, checkpoints[static_cast<size_t>(seg)]);
       sim.set_clock(checkpoint_clocks[static_cast<size_t>(seg)]);
       states.clear();
       for (int j = seg * K; j <= k; ++j) {
@@ -208,12 +212,7 @@ ModelGradient WindowGradient::run(Simulation& sim, int steps, const StateLossGra
   }
   if (checkpointing) {  // leave the simulation at the end of the window, as without checkpoints
     sim.set_clock(final_clock);
-    World& sw = sim.world();
-    sw.x = final_state.x;
-    sw.v = final_state.v;
-    sw.C = final_state.C;
-    sw.J = final_state.J;
-    sw.heading = final_state.heading;
+    restore_state(sim.world(), final_state);
   }
   out.x0 = xb;
   out.v0 = vb;

@@ -64,6 +64,14 @@ json parse_json_text(const std::string& text, const std::string& source_name) {
 
 json load_json_file(const std::string& path) { return parse_json_text(read_text_file(path), path); }
 
+void save_json_file(const json& j, const std::string& path) {
+  std::ofstream out(path);
+  if (!out) throw Error("cannot write " + path);
+  out << j.dump(2) << "\n";
+  out.close();
+  if (!out) throw Error("writing " + path + " failed");
+}
+
 std::string JsonReader::child_path(const std::string& key) const {
   return path_.empty() ? key : path_ + "." + key;
 }

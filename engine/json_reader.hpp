@@ -16,6 +16,8 @@ using json = nlohmann::json;
 // Parses JSON text; a syntax error is reported with the file name, line and column.
 json parse_json_text(const std::string& text, const std::string& source_name);
 json load_json_file(const std::string& path);
+// Writes j (indented, with a final newline) to path; throws Error naming the path if it cannot.
+void save_json_file(const json& j, const std::string& path);
 std::string read_text_file(const std::string& path);
 
 class JsonReader {

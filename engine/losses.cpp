@@ -34,13 +34,6 @@ double GridVelocityField::mask_sum() const {
 }
 
 namespace {
-// Quadratic B-spline weights and their derivatives (per cell, along one axis) at offset f.
-void weight_derivatives(double f, double d[3]) {
-  d[0] = -(1.5 - f);
-  d[1] = -2 * (f - 1);
-  d[2] = f - 0.5;
-}
-
 // Calls fn(node, w, dw/dx) for the 9 nodes of x's stencil; nothing for a point whose stencil
 // does not fit on the grid (make_stencil would clamp it, and its weights mean nothing there).
 template <class F>
@@ -49,12 +42,11 @@ void for_stencil(const Vec2& origin, double dx, int nx, int ny, const Vec2& x, F
   if (!(bx >= 0 && by >= 0 && bx <= nx - 3 && by <= ny - 3)) return;
   const Stencil s = make_stencil(origin, dx, nx, ny, x);
   double dwx[3], dwy[3];
-  weight_derivatives(s.fx, dwx);
-  weight_derivatives(s.fy, dwy);
+  stencil_weight_gradients(s, dx, dwx, dwy);
   for (int j = 0; j < 3; ++j)
     for (int i = 0; i < 3; ++i) {
       const int node = (s.by + j) * nx + (s.bx + i);
-      fn(static_cast<size_t>(node), s.wx[i] * s.wy[j], Vec2(dwx[i] * s.wy[j] / dx, s.wx[i] * dwy[j] / dx));
+      fn(static_cast<size_t>(node), s.wx[i] * s.wy[j], Vec2(dwx[i] * s.wy[j], s.wx[i] * dwy[j]));
     }
 }
 

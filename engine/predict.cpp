@@ -93,6 +93,10 @@ PredictionReport evaluate_predictor(const std::string& method, const TrajectoryS
     std::vector<double> err_sum(s.ids.size(), 0);
     std::vector<long> err_n(s.ids.size(), 0);
     for (size_t k = 0; k < times.size(); ++k) {
+      // Whole seconds (1..seconds) get FDE samples, ADE so far and the grid velocity error.
+      const int sec = static_cast<int>(std::lround(times[k]));
+      const bool whole = std::abs(times[k] - sec) < 0.5 / t.framerate && sec >= 1 && sec <= seconds;
+      const size_t si = static_cast<size_t>(std::max(sec, 1) - 1);
       auto [b, e] = t.frame(f0 + static_cast<long>(k) + 1);
       for (auto p = b; p != e; ++p) {
         auto it = index.find(p->id);
@@ -102,23 +106,18 @@ PredictionReport evaluate_predictor(const std::string& method, const TrajectoryS
         double err = (x - Vec2(p->x, p->y)).norm();
         err_sum[it->second] += err;
         ++err_n[it->second];
-        // At whole seconds: FDE sample, and ADE over everything so far for this agent.
-        double tk = times[k];
-        int sec = static_cast<int>(std::lround(tk));
-        if (std::abs(tk - sec) < 0.5 / t.framerate && sec >= 1 && sec <= seconds) {
-          fde_sum[static_cast<size_t>(sec - 1)] += err;
-          ++fde_n[static_cast<size_t>(sec - 1)];
-          ade_sum[static_cast<size_t>(sec - 1)] += err_sum[it->second] / static_cast<double>(err_n[it->second]);
-          ++ade_n[static_cast<size_t>(sec - 1)];
+        if (whole) {
+          fde_sum[si] += err;
+          ++fde_n[si];
+          ade_sum[si] += err_sum[it->second] / static_cast<double>(err_n[it->second]);
+          ++ade_n[si];
         }
       }
-      double tk = times[k];
-      int sec = static_cast<int>(std::lround(tk));
-      if (grid && k > 0 && std::abs(tk - sec) < 0.5 / t.framerate && sec >= 1 && sec <= seconds) {
+      if (grid && k > 0 && whole) {
         double gv = grid_velocity_error(t, f0 + static_cast<long>(k), index, pred[k - 1], pred[k], *grid, o.grid_min_mass);
         if (std::isfinite(gv)) {
-          gv_sum[static_cast<size_t>(sec - 1)] += gv;
-          ++gv_n[static_cast<size_t>(sec - 1)];
+          gv_sum[si] += gv;
+          ++gv_n[si];
         }
       }
     }
@@ -236,7 +235,7 @@ std::string model_label(const Model& m) {
   return m.name.find(kind) == std::string::npos ? m.name + " (" + kind + ")" : m.name;
 }
 
-PredictJob make_predict_job(const std::string& scenario_path, const std::string& trajectories_path,
+PredictJob load_predict_job(const std::string& scenario_path, const std::string& trajectories_path,
                             const std::vector<std::string>& model_paths, const PredictOptions& o, DesiredSpeed ds) {
   PredictJob job;
   job.scenario_path = scenario_path;
@@ -249,6 +248,12 @@ PredictJob make_predict_job(const std::string& scenario_path, const std::string&
   job.recording = TrajectorySet::read(trajectories_path);
   job.options = o;
   job.desired_speed = ds;
+  return job;
+}
+
+PredictJob make_predict_job(const std::string& scenario_path, const std::string& trajectories_path,
+                            const std::vector<std::string>& model_paths, const PredictOptions& o, DesiredSpeed ds) {
+  PredictJob job = load_predict_job(scenario_path, trajectories_path, model_paths, o, ds);
   if (!(o.observe > 0 && o.horizon > 0 && o.stride > 0))
     throw Error("observe, horizon and stride must be > 0 s");
   if (o.observe + o.horizon > job.recording.duration())

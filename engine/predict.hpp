@@ -104,7 +104,10 @@ struct PredictJob {
   PredictOptions options;
   DesiredSpeed desired_speed = DesiredSpeed::Observed;
 };
-// Loads the scenario and recording, checks that observe + horizon fit the recording.
+// Loads the scenario, models and recording.
+PredictJob load_predict_job(const std::string& scenario_path, const std::string& trajectories_path,
+                            const std::vector<std::string>& model_paths, const PredictOptions& o, DesiredSpeed ds);
+// The same, and checks that observe, horizon and stride are > 0 and observe + horizon fit the recording.
 PredictJob make_predict_job(const std::string& scenario_path, const std::string& trajectories_path,
                             const std::vector<std::string>& model_paths, const PredictOptions& o, DesiredSpeed ds);
 // From JSON: {"scenario": PATH, "trajectories": PATH, "models": [PATH, ...], "observe": 2,

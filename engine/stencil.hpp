@@ -30,4 +30,16 @@ inline Stencil make_stencil(const Vec2& origin, double dx, int nx, int ny, const
   return s;
 }
 
+// Derivatives with respect to the position (1/m) of the three weights per axis of a stencil on
+// a grid of spacing dx (its base node held fixed).
+inline void stencil_weight_gradients(const Stencil& s, double dx, double dwx[3], double dwy[3]) {
+  const double inv = 1 / dx;
+  dwx[0] = -(1.5 - s.fx) * inv;
+  dwx[1] = -2 * (s.fx - 1) * inv;
+  dwx[2] = (s.fx - 0.5) * inv;
+  dwy[0] = -(1.5 - s.fy) * inv;
+  dwy[1] = -2 * (s.fy - 1) * inv;
+  dwy[2] = (s.fy - 0.5) * inv;
+}
+
 }  // namespace crowdmpm

@@ -4,7 +4,6 @@
 #include "engine/optim.hpp"
 
 #include <algorithm>
-#include <fstream>
 #include <cmath>
 #include <limits>
 
@@ -147,6 +146,7 @@ void make_windows(const std::vector<TrainDataset>& data, const TrainOptions& o, 
         TrainWindow w;
         w.dataset = d;
         w.start = observe_at(t, starts[i], o.velocity_window, o.speed_window);
+        if (w.start.ids.empty()) continue;
         w.framerate = t.framerate;
         std::vector<std::pair<long, size_t>> order;  // (recorded id, index in start)
         for (size_t k = 0; k < w.start.ids.size(); ++k) order.emplace_back(w.start.ids[k], k);
@@ -160,7 +160,6 @@ void make_windows(const std::vector<TrainDataset>& data, const TrainOptions& o, 
           }
           w.seen.push_back(std::move(row));
         }
-        if (w.start.ids.empty()) continue;
         (is_val ? validation : train).push_back(std::move(w));
       }
     }
@@ -611,12 +610,6 @@ Model describe_learned(const TrainJob& job, const TrainResult& r) {
   return m;
 }
 
-void save_model(const Model& m, const std::string& path) {
-  std::ofstream out(path);
-  if (!out) throw Error("cannot write " + path);
-  out << m.to_json().dump(2) << "\n";
-  out.close();
-  if (!out) throw Error("writing " + path + " failed");
-}
+void save_model(const Model& m, const std::string& path) { save_json_file(m.to_json(), path); }
 
 }  // namespace crowdmpm

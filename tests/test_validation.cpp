@@ -52,15 +52,23 @@ TEST_CASE("every malformed file in tests/bad gives a clear error naming where", 
   }
 }
 
+namespace {
+// The .json files directly in a folder of the repository.
+std::vector<std::string> json_files_in(const std::string& folder) {
+  std::vector<std::string> out;
+  for (const auto& entry : std::filesystem::directory_iterator(test::repo_path(folder)))
+    if (entry.path().extension() == ".json") out.push_back(entry.path().string());
+  return out;
+}
+}  // namespace
+
 TEST_CASE("every shipped scenario is valid", "[validation]") {
-  size_t n = 0;
-  for (const auto& entry : std::filesystem::directory_iterator(test::repo_path("scenarios"))) {
-    if (entry.path().extension() != ".json") continue;
-    INFO("scenario: " << entry.path().string());
-    CHECK_NOTHROW(ScenarioDef::load(entry.path().string()));
-    ++n;
+  const auto files = json_files_in("scenarios");
+  for (const auto& f : files) {
+    INFO("scenario: " << f);
+    CHECK_NOTHROW(ScenarioDef::load(f));
   }
-  CHECK(n >= 12);
+  CHECK(files.size() >= 12);
 }
 
 TEST_CASE("model JSON round-trips through to_json and parse", "[validation]") {
@@ -76,12 +84,10 @@ TEST_CASE("model JSON round-trips through to_json and parse", "[validation]") {
 }
 
 TEST_CASE("every shipped model is valid", "[validation]") {
-  size_t n = 0;
-  for (const auto& entry : std::filesystem::directory_iterator(test::repo_path("scenarios/models"))) {
-    if (entry.path().extension() != ".json") continue;
-    INFO("model: " << entry.path().string());
-    CHECK_NOTHROW(Model::load(entry.path().string()));
-    ++n;
+  const auto files = json_files_in("scenarios/models");
+  for (const auto& f : files) {
+    INFO("model: " << f);
+    CHECK_NOTHROW(Model::load(f));
   }
-  CHECK(n >= 1);
+  CHECK(files.size() >= 1);
 }
