@@ -22,8 +22,8 @@
 #include <string>
 
 #include "cost_model.hpp"
-#include "engine/differentiable.hpp"
-#include "engine/simulation.hpp"
+#include "engine/learn/differentiable.hpp"
+#include "engine/sim/simulation.hpp"
 
 using namespace crowdmpm;
 

@@ -7,7 +7,7 @@
 #include <string>
 #include <vector>
 
-#include "engine/simulation.hpp"
+#include "engine/sim/simulation.hpp"
 
 namespace crowdmpm::bench {
 

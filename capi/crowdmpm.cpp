@@ -10,10 +10,10 @@
 #include <string>
 #include <vector>
 
-#include "engine/fields.hpp"
-#include "engine/simulation.hpp"
-#include "engine/predict.hpp"
-#include "engine/train.hpp"
+#include "engine/analysis/fields.hpp"
+#include "engine/sim/simulation.hpp"
+#include "engine/predict/predict.hpp"
+#include "engine/learn/train.hpp"
 
 using namespace crowdmpm;
 

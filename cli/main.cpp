@@ -9,10 +9,10 @@
 #include <cmath>
 #include <filesystem>
 
-#include "engine/output.hpp"
-#include "engine/predict.hpp"
-#include "engine/render.hpp"
-#include "engine/train.hpp"
+#include "engine/run/runner.hpp"
+#include "engine/predict/predict.hpp"
+#include "engine/io/render.hpp"
+#include "engine/learn/train.hpp"
 
 using namespace crowdmpm;
 

@@ -3,7 +3,7 @@
 #include <cstdio>
 #include <cstdlib>
 
-#include "engine/simulation.hpp"
+#include "engine/sim/simulation.hpp"
 
 int main(int argc, char** argv) {
   if (argc < 3) {

@@ -5,7 +5,7 @@
 #include <functional>
 #include <string>
 
-#include "engine/output.hpp"
+#include "engine/run/runner.hpp"
 
 namespace crowdmpm::test {
 

@@ -6,12 +6,12 @@
 #include <cstdlib>
 #include <functional>
 
-#include "engine/adjoint.hpp"
-#include "engine/differentiable.hpp"
+#include "engine/learn/adjoint.hpp"
+#include "engine/learn/differentiable.hpp"
 #include <memory>
 #include <string>
-#include "engine/optim.hpp"
-#include "engine/traction.hpp"
+#include "engine/learn/optim.hpp"
+#include "engine/sim/traction.hpp"
 #include "support.hpp"
 
 using namespace crowdmpm;

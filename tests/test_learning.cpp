@@ -4,8 +4,9 @@
 #include <cmath>
 #include <cstdio>
 
-#include "engine/losses.hpp"
-#include "engine/train.hpp"
+#include "engine/learn/losses.hpp"
+#include "engine/learn/train.hpp"
+#include "engine/predict/predict.hpp"
 #include "support.hpp"
 
 using namespace crowdmpm;

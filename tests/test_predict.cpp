@@ -5,7 +5,7 @@
 #include <cstdio>
 #include <sstream>
 
-#include "engine/predict.hpp"
+#include "engine/predict/predict.hpp"
 #include "support.hpp"
 
 using namespace crowdmpm;

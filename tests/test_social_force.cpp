@@ -4,7 +4,8 @@
 #include <cmath>
 #include <cstdio>
 
-#include "engine/train.hpp"
+#include "engine/learn/train.hpp"
+#include "engine/predict/predict.hpp"
 #include "support.hpp"
 
 using namespace crowdmpm;

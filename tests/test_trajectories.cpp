@@ -6,7 +6,7 @@
 #include <fstream>
 #include <set>
 
-#include "engine/trajectory.hpp"
+#include "engine/io/trajectory.hpp"
 #include "support.hpp"
 
 using namespace crowdmpm;

@@ -6,7 +6,7 @@
 #include <filesystem>
 #include <fstream>
 
-#include "engine/trajectory.hpp"
+#include "engine/io/trajectory.hpp"
 #include "support.hpp"
 
 using namespace crowdmpm;

@@ -1,0 +1,41 @@
+#include "engine/geometry/geometry.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace crowdmpm {
+
+double Geometry::sdf(const Vec2& p) const {
+  double d = std::min(std::min(p.x() - lo.x(), hi.x() - p.x()), std::min(p.y() - lo.y(), hi.y() - p.y()));
+  for (const auto& s : solids) {
+    // Bounding-box distance is a lower bound of the shape distance: skip far shapes.
+    Vec2 q = p.cwiseMax(s.lo).cwiseMin(s.hi);
+    if ((q - p).norm() >= d) continue;
+    d = std::min(d, s.sdf(p));
+  }
+  return d;
+}
+
+Vec2 Geometry::normal(const Vec2& p) const {
+  const double h = 1e-5;
+  Vec2 g((sdf(p + Vec2(h, 0)) - sdf(p - Vec2(h, 0))) / (2 * h),
+         (sdf(p + Vec2(0, h)) - sdf(p - Vec2(0, h))) / (2 * h));
+  double n = g.norm();
+  return n > 1e-12 ? Vec2(g / n) : Vec2(0, 0);
+}
+
+int Geometry::exit_at(const Vec2& p) const {
+  for (size_t i = 0; i < exits.size(); ++i)
+    if (exits[i].shape.contains(p)) return static_cast<int>(i);
+  return -1;
+}
+
+const NamedShape* Geometry::find_target(const std::string& id) const {
+  for (const auto& e : exits)
+    if (e.id == id) return &e;
+  for (const auto& g : goals)
+    if (g.id == id) return &g;
+  return nullptr;
+}
+
+}  // namespace crowdmpm

@@ -1,0 +1,32 @@
+#pragma once
+// The venue: a rectangular domain (whose border is a wall), solid walls and obstacles, exits
+// (regions where agents leave) and goals (named target regions).
+#include <string>
+#include <vector>
+
+#include "engine/geometry/shape.hpp"
+
+namespace crowdmpm {
+
+struct NamedShape {
+  std::string id;
+  Shape shape;
+};
+
+class Geometry {
+ public:
+  Vec2 lo = Vec2::Zero(), hi = Vec2::Zero();  // domain bounds, metres
+  std::vector<Shape> solids;                  // walls (thick polylines) and obstacles
+  std::vector<NamedShape> exits;
+  std::vector<NamedShape> goals;
+
+  // Signed distance to the nearest solid, the domain border included: negative inside a solid.
+  double sdf(const Vec2& p) const;
+  // Unit outward normal of the solid nearest to p (gradient of sdf).
+  Vec2 normal(const Vec2& p) const;
+  // Index of the exit containing p, or -1.
+  int exit_at(const Vec2& p) const;
+  const NamedShape* find_target(const std::string& id) const;  // exit or goal by id
+};
+
+}  // namespace crowdmpm

@@ -1,0 +1,220 @@
+#include "engine/io/render.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <opencv2/videoio.hpp>
+
+#include "engine/core/error.hpp"
+#include "engine/core/json_reader.hpp"
+
+namespace crowdmpm {
+
+namespace {
+constexpr int kTitle = 28;  // band above the map
+constexpr int kBar = 90;    // colour bar to the right
+constexpr int kPad = 8;
+
+cv::Point to_px(const View& v, const Vec2& p) {
+  return cv::Point(kPad + static_cast<int>(std::lround((p.x() - v.lo.x()) * v.ppm)),
+                   kTitle + static_cast<int>(std::lround((v.hi.y() - p.y()) * v.ppm)));
+}
+
+cv::Vec3b colour(double t) {
+  static const cv::Mat lut = [] {
+    cv::Mat ramp(1, 256, CV_8UC1), out;
+    for (int i = 0; i < 256; ++i) ramp.at<unsigned char>(0, i) = static_cast<unsigned char>(i);
+    cv::applyColorMap(ramp, out, cv::COLORMAP_INFERNO);
+    return out;
+  }();
+  if (!(t >= 0)) t = 0;  // NaN too
+  return lut.at<cv::Vec3b>(0, static_cast<int>(std::lround(std::min(t, 1.0) * 255)));
+}
+
+cv::Mat canvas(const View& v) {
+  // At least 480 px wide so that titles and legends of tall, narrow venues fit.
+  return cv::Mat(v.height() + kTitle + kPad, std::max(480, v.width() + 2 * kPad + kBar), CV_8UC3, cv::Scalar(255, 255, 255));
+}
+
+void draw_shape(cv::Mat& img, const View& v, const Shape& s, const cv::Scalar& fill, const cv::Scalar& edge, bool filled) {
+  int th = std::max(1, static_cast<int>(std::lround(2 * s.radius * v.ppm)));
+  switch (s.kind) {
+    case Shape::Kind::Circle: {
+      int r = std::max(1, static_cast<int>(std::lround(s.radius * v.ppm)));
+      if (filled) cv::circle(img, to_px(v, s.center), r, fill, cv::FILLED, cv::LINE_AA);
+      cv::circle(img, to_px(v, s.center), r, edge, 1, cv::LINE_AA);
+      break;
+    }
+    case Shape::Kind::Polyline: {
+      std::vector<cv::Point> pts;
+      for (const auto& q : s.points) pts.push_back(to_px(v, q));
+      cv::polylines(img, pts, false, fill, th, cv::LINE_AA);
+      break;
+    }
+    case Shape::Kind::Polygon: {
+      std::vector<cv::Point> pts;
+      for (const auto& q : s.points) pts.push_back(to_px(v, q));
+      if (filled) cv::fillPoly(img, std::vector<std::vector<cv::Point>>{pts}, fill, cv::LINE_AA);
+      cv::polylines(img, pts, true, edge, 1, cv::LINE_AA);
+      break;
+    }
+  }
+}
+
+void draw_geometry(cv::Mat& img, const View& v, const Geometry& geo) {
+  for (const auto& e : geo.exits) draw_shape(img, v, e.shape, cv::Scalar(120, 200, 120), cv::Scalar(40, 140, 40), false);
+  for (const auto& g : geo.goals) draw_shape(img, v, g.shape, cv::Scalar(200, 160, 80), cv::Scalar(200, 120, 40), false);
+  for (const auto& s : geo.solids) draw_shape(img, v, s, cv::Scalar(90, 90, 90), cv::Scalar(40, 40, 40), true);
+  cv::rectangle(img, to_px(v, Vec2(v.lo.x(), v.hi.y())), to_px(v, Vec2(v.hi.x(), v.lo.y())), cv::Scalar(0, 0, 0), 1);
+}
+
+void draw_colour_bar(cv::Mat& img, const View& v, double vmin, double vmax, const std::string& unit) {
+  int x0 = v.width() + 2 * kPad + 10, y0 = kTitle, h = v.height(), w = 16;
+  for (int y = 0; y < h; ++y) {
+    cv::Vec3b c = colour(1.0 - static_cast<double>(y) / std::max(1, h - 1));
+    cv::line(img, cv::Point(x0, y0 + y), cv::Point(x0 + w, y0 + y), cv::Scalar(c[0], c[1], c[2]));
+  }
+  cv::rectangle(img, cv::Point(x0, y0), cv::Point(x0 + w, y0 + h), cv::Scalar(0, 0, 0));
+  for (int k = 0; k <= 4; ++k) {
+    double val = vmin + (vmax - vmin) * k / 4.0;
+    int y = y0 + h - static_cast<int>(std::lround(h * k / 4.0));
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%.3g", val);
+    cv::putText(img, buf, cv::Point(x0 + w + 4, y + 4), cv::FONT_HERSHEY_SIMPLEX, 0.4, cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
+  }
+  cv::putText(img, unit, cv::Point(x0 - 6, y0 - 6), cv::FONT_HERSHEY_SIMPLEX, 0.4, cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
+}
+
+void title(cv::Mat& img, const std::string& text) {
+  cv::putText(img, text, cv::Point(kPad, 19), cv::FONT_HERSHEY_SIMPLEX, 0.5, cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
+}
+
+void write_png(const std::string& path, const cv::Mat& img) {
+  bool ok = false;
+  try {
+    ok = cv::imwrite(path, img);
+  } catch (const cv::Exception& e) {
+    throw Error(path + ": cannot write image (" + e.what() + ")");
+  }
+  if (!ok) throw Error(path + ": cannot write image");
+}
+}  // namespace
+
+int View::width() const { return static_cast<int>(std::lround((hi.x() - lo.x()) * ppm)); }
+int View::height() const { return static_cast<int>(std::lround((hi.y() - lo.y()) * ppm)); }
+
+View View::fit(const Geometry& geo, double pixels_per_metre) {
+  View v{geo.lo, geo.hi, pixels_per_metre};
+  if (v.ppm <= 0) {
+    double ext = std::max(geo.hi.x() - geo.lo.x(), geo.hi.y() - geo.lo.y());
+    v.ppm = std::clamp(800.0 / ext, 1.0, 60.0);
+  }
+  // At most 4000 px on a side (a 7.5 GB picture helps nobody): lower the scale if asked for more.
+  const double longest = std::max(geo.hi.x() - geo.lo.x(), geo.hi.y() - geo.lo.y());
+  v.ppm = std::max(1e-3, std::min(v.ppm, 4000.0 / longest));
+  return v;
+}
+
+void write_field_png(const std::string& path, const Geometry& geo, const View& v, const FieldFrame& f,
+                     const std::vector<double>& values, double vmin, double vmax, const std::string& text,
+                     const std::string& unit) {
+  cv::Mat img = canvas(v);
+  if (vmax <= vmin) vmax = vmin + 1;
+  for (int py = 0; py < v.height(); ++py)
+    for (int px = 0; px < v.width(); ++px) {
+      Vec2 p(v.lo.x() + (px + 0.5) / v.ppm, v.hi.y() - (py + 0.5) / v.ppm);
+      double gx = (p.x() - f.origin.x()) / f.dx, gy = (p.y() - f.origin.y()) / f.dx;
+      int i = std::clamp(static_cast<int>(std::floor(gx)), 0, f.nx - 2);
+      int j = std::clamp(static_cast<int>(std::floor(gy)), 0, f.ny - 2);
+      double tx = gx - i, ty = gy - j;
+      double val = (1 - tx) * (1 - ty) * f.at(values, i, j) + tx * (1 - ty) * f.at(values, i + 1, j) +
+                   (1 - tx) * ty * f.at(values, i, j + 1) + tx * ty * f.at(values, i + 1, j + 1);
+      if (geo.sdf(p) < 0) continue;
+      img.at<cv::Vec3b>(kTitle + py, kPad + px) = colour((val - vmin) / (vmax - vmin));
+    }
+  draw_geometry(img, v, geo);
+  draw_colour_bar(img, v, vmin, vmax, unit);
+  title(img, text);
+  write_png(path, img);
+}
+
+void write_paths_png(const std::string& path, const Geometry& geo, const View& v, const std::vector<PathSet>& sets,
+                     const std::string& text) {
+  // The legend sits right of the venue: as wide as its longest label.
+  int label_w = 0;
+  for (const auto& set : sets) {
+    int base = 0;
+    label_w = std::max(label_w, cv::getTextSize(set.label, cv::FONT_HERSHEY_SIMPLEX, 0.35, 1, &base).width);
+  }
+  cv::Mat img(v.height() + kTitle + kPad, std::max(480, v.width() + 2 * kPad + 4 + 18 + label_w + 6), CV_8UC3,
+              cv::Scalar(255, 255, 255));
+  draw_geometry(img, v, geo);
+  int legend_y = kTitle + 16;
+  for (const auto& set : sets) {
+    cv::Scalar c(set.b, set.g, set.r);
+    for (const auto& poly : set.paths) {
+      std::vector<cv::Point> pts;
+      for (const auto& q : poly)
+        if (q.allFinite()) pts.push_back(to_px(v, q));
+      if (pts.size() >= 2) cv::polylines(img, pts, false, c, 1, cv::LINE_AA);
+      if (!pts.empty()) cv::circle(img, pts.back(), 2, c, cv::FILLED, cv::LINE_AA);
+    }
+    int x0 = v.width() + 2 * kPad + 4;
+    cv::line(img, cv::Point(x0, legend_y), cv::Point(x0 + 14, legend_y), c, 2);
+    cv::putText(img, set.label, cv::Point(x0 + 18, legend_y + 4), cv::FONT_HERSHEY_SIMPLEX, 0.35, cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
+    legend_y += 16;
+  }
+  title(img, text);
+  write_png(path, img);
+}
+
+struct ParticleVideo::Impl {
+  cv::VideoWriter writer;
+  const Geometry& geo;
+  View view;
+  double pmax;
+  cv::Mat background;
+  Impl(const Geometry& g, const View& v, double p) : geo(g), view(v), pmax(p) {}
+  cv::Mat frame(const World& w, double time) {
+    cv::Mat img = background.clone();
+    for (size_t p = 0; p < w.size(); ++p) {
+      cv::Vec3b c = colour(w.pressure[p] / pmax);
+      int r = std::max(2, static_cast<int>(std::lround(w.radius[p] * view.ppm)));
+      cv::circle(img, to_px(view, w.x[p]), r, cv::Scalar(c[0], c[1], c[2]), cv::FILLED, cv::LINE_AA);
+    }
+    char buf[96];
+    std::snprintf(buf, sizeof buf, "t = %.1f s   agents: %zu   colour: pressure", time, w.size());
+    title(img, buf);
+    return img;
+  }
+};
+
+ParticleVideo::ParticleVideo(const std::string& path, const Geometry& geo, const View& view, double fps, double pmax)
+    : impl_(new Impl(geo, view, pmax > 0 ? pmax : 1)) {
+  impl_->background = canvas(view);
+  // Even frame sizes for the codec.
+  if (impl_->background.cols % 2) cv::copyMakeBorder(impl_->background, impl_->background, 0, 0, 0, 1, cv::BORDER_CONSTANT, cv::Scalar(255, 255, 255));
+  if (impl_->background.rows % 2) cv::copyMakeBorder(impl_->background, impl_->background, 0, 1, 0, 0, cv::BORDER_CONSTANT, cv::Scalar(255, 255, 255));
+  draw_geometry(impl_->background, view, geo);
+  draw_colour_bar(impl_->background, view, 0, impl_->pmax, "pressure");
+  if (!path.empty()) {
+    impl_->writer.open(path, cv::VideoWriter::fourcc('m', 'p', '4', 'v'), fps, impl_->background.size());
+    if (!impl_->writer.isOpened()) {
+      delete impl_;
+      impl_ = nullptr;
+      throw Error(path + ": cannot open video for writing (OpenCV VideoWriter, mp4v)");
+    }
+  }
+}
+
+ParticleVideo::~ParticleVideo() { delete impl_; }
+bool ParticleVideo::ok() const { return impl_ && impl_->writer.isOpened(); }
+
+void ParticleVideo::add_frame(const World& w, double time) { impl_->writer.write(impl_->frame(w, time)); }
+
+void ParticleVideo::write_snapshot(const std::string& png_path, const World& w, double time) {
+  write_png(png_path, impl_->frame(w, time));
+}
+
+}  // namespace crowdmpm

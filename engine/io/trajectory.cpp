@@ -1,0 +1,149 @@
+#include "engine/io/trajectory.hpp"
+
+#include <algorithm>
+#include <cerrno>
+#include <cmath>
+#include <cstring>
+#include <numeric>
+#include <set>
+#include <sstream>
+
+#include "engine/core/error.hpp"
+#include "engine/core/json_reader.hpp"
+
+namespace crowdmpm {
+
+namespace {
+
+std::string lower(std::string s) {
+  for (auto& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return s;
+}
+
+// Metres per unit for "m", "cm", "mm"; 0 if not a unit.
+double unit_scale(const std::string& u) {
+  if (u == "m") return 1;
+  if (u == "cm") return 0.01;
+  if (u == "mm") return 0.001;
+  return 0;
+}
+
+}  // namespace
+
+TrajectorySet TrajectorySet::read(const std::string& path, double framerate_override) {
+  return parse(read_text_file(path), path, framerate_override);
+}
+
+TrajectorySet TrajectorySet::parse(const std::string& text, const std::string& source, double framerate_override) {
+  TrajectorySet t;
+  t.source = source;
+  double scale = 1;
+  bool unit_given = false;
+  std::istringstream in(text);
+  std::string line;
+  long lineno = 0;
+  auto fail = [&](const std::string& why) -> void { throw Error(source + ":" + std::to_string(lineno) + ": " + why); };
+  while (std::getline(in, line)) {
+    ++lineno;
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    size_t start = line.find_first_not_of(" \t");
+    if (start == std::string::npos) continue;
+    if (line[start] == '#') {
+      std::string c = lower(line.substr(start + 1));
+      auto value_after = [&](const std::string& key) -> std::optional<std::string> {
+        auto pos = c.find(key);
+        if (pos == std::string::npos) return std::nullopt;
+        std::string v = c.substr(pos + key.size());
+        v.erase(0, v.find_first_not_of(" \t:="));
+        return v;
+      };
+      if (c.find("original header") != std::string::npos) continue;  // provenance, not this file's format
+      if (auto v = value_after("framerate"); v && t.framerate == 0) {
+        char* end = nullptr;
+        double fr = std::strtod(v->c_str(), &end);
+        if (end == v->c_str() || !(fr > 0 && fr < 1e4)) fail("cannot read the frame rate from \"" + line + "\"");
+        t.framerate = fr;
+      } else if (auto u = value_after("unit"); u && !unit_given) {
+        std::string name = u->substr(0, u->find_first_of(" \t"));
+        if (unit_scale(name) == 0) fail("unknown unit \"" + name + "\" (m, cm or mm)");
+        scale = unit_scale(name);
+        unit_given = true;
+      } else if (!unit_given && c.find("x/") != std::string::npos) {
+        std::string name = c.substr(c.find("x/") + 2);
+        name = name.substr(0, name.find_first_of(" \t"));
+        if (unit_scale(name) > 0) {
+          scale = unit_scale(name);
+          unit_given = true;
+        }
+      }
+      continue;
+    }
+    std::istringstream row(line);
+    std::vector<double> v;
+    std::string tok;
+    while (row >> tok) {
+      char* end = nullptr;
+      errno = 0;
+      double d = std::strtod(tok.c_str(), &end);
+      if (*end != '\0' || errno == ERANGE) fail("\"" + tok + "\" is not a number");
+      if (!std::isfinite(d)) fail("\"" + tok + "\" is not a finite number");
+      v.push_back(d);
+    }
+    if (v.size() < 4 || v.size() > 5) fail("expected \"id frame x y [z]\", got " + std::to_string(v.size()) + " values");
+    if (v[0] != std::floor(v[0]) || v[1] != std::floor(v[1]) || v[1] < 0)
+      fail("id and frame must be whole numbers (frame >= 0)");
+    t.points.push_back({static_cast<long>(v[0]), static_cast<long>(v[1]), v[2] * scale, v[3] * scale});
+  }
+  if (framerate_override > 0) t.framerate = framerate_override;
+  if (t.framerate <= 0) throw Error(source + ": no \"# framerate: N\" header (give the frame rate explicitly)");
+  if (t.points.empty()) throw Error(source + ": no trajectory rows");
+  std::stable_sort(t.points.begin(), t.points.end(), [](const TrackPoint& a, const TrackPoint& b) {
+    return a.frame != b.frame ? a.frame < b.frame : a.id < b.id;
+  });
+  for (size_t i = 1; i < t.points.size(); ++i)
+    if (t.points[i].frame == t.points[i - 1].frame && t.points[i].id == t.points[i - 1].id)
+      throw Error(source + ": person " + std::to_string(t.points[i].id) + " appears twice in frame " +
+                  std::to_string(t.points[i].frame));
+  return t;
+}
+
+size_t TrajectorySet::person_count() const {
+  std::set<long> ids;
+  for (const auto& p : points) ids.insert(p.id);
+  return ids.size();
+}
+
+std::pair<const TrackPoint*, const TrackPoint*> TrajectorySet::frame(long f) const {
+  auto lo = std::lower_bound(points.begin(), points.end(), f, [](const TrackPoint& p, long fr) { return p.frame < fr; });
+  auto hi = std::upper_bound(lo, points.end(), f, [](long fr, const TrackPoint& p) { return fr < p.frame; });
+  const TrackPoint* base = points.data();
+  return {base + (lo - points.begin()), base + (hi - points.begin())};
+}
+
+TrajectoryWriter::TrajectoryWriter(const std::string& path, double framerate, const std::string& comment) : path_(path) {
+  f_ = std::fopen(path.c_str(), "w");
+  if (!f_) throw Error(path + ": cannot open for writing: " + std::strerror(errno));
+  std::fprintf(f_, "# framerate: %.10g\n# unit: m\n# %s\n# id frame x y z\n", framerate, comment.c_str());
+}
+
+TrajectoryWriter::~TrajectoryWriter() {
+  if (f_) std::fclose(f_);
+}
+
+void TrajectoryWriter::write_frame(const World& w, long frame) {
+  std::vector<size_t> order(w.size());
+  std::iota(order.begin(), order.end(), size_t{0});
+  std::sort(order.begin(), order.end(), [&](size_t a, size_t b) { return w.id[a] < w.id[b]; });
+  for (size_t p : order)
+    std::fprintf(f_, "%llu %ld %.5f %.5f 0\n", static_cast<unsigned long long>(w.id[p]), frame, w.x[p].x(), w.x[p].y());
+}
+
+void TrajectoryWriter::close() {
+  if (f_ && std::fclose(f_) != 0) {
+    f_ = nullptr;
+    throw Error(path_ + ": write failed (disk full?)");
+  }
+  f_ = nullptr;
+}
+
+}  // namespace crowdmpm

@@ -1,0 +1,56 @@
+#pragma once
+// Trajectories in the PeTrack/JuPedSim text format used by PedPy and the Julich data archive:
+// comment lines start with '#' ("# framerate: 16", "# unit: cm", a column header such as
+// "# id frame x/cm y/cm z/cm"), then whitespace-separated rows "id frame x y [z]".
+#include <cstdio>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "engine/sim/world.hpp"
+
+namespace crowdmpm {
+
+struct TrackPoint {
+  long id = 0;
+  long frame = 0;
+  double x = 0, y = 0;  // metres
+};
+
+class TrajectorySet {
+ public:
+  double framerate = 0;           // frames per second
+  std::string source;             // file name, for messages
+  std::vector<TrackPoint> points; // sorted by (frame, id)
+
+  // Reads a file; positions are converted to metres from the unit its header states (m, cm or
+  // mm; metres if none). framerate_override > 0 replaces the header's frame rate, which is
+  // otherwise required. Malformed rows, non-finite numbers, duplicate (id, frame) pairs and a
+  // missing frame rate are errors naming file and line.
+  static TrajectorySet read(const std::string& path, double framerate_override = 0);
+  static TrajectorySet parse(const std::string& text, const std::string& source, double framerate_override = 0);
+
+  long frame_min() const { return points.empty() ? 0 : points.front().frame; }
+  long frame_max() const { return points.empty() ? 0 : points.back().frame; }
+  size_t person_count() const;
+  double duration() const { return framerate > 0 ? static_cast<double>(frame_max() - frame_min()) / framerate : 0; }
+  // The points of one frame (a contiguous, id-sorted range).
+  std::pair<const TrackPoint*, const TrackPoint*> frame(long f) const;
+};
+
+// Writes frames of a world as "id frame x y z" rows under a "# framerate:" header (metres).
+class TrajectoryWriter {
+ public:
+  TrajectoryWriter(const std::string& path, double framerate, const std::string& comment);
+  ~TrajectoryWriter();
+  TrajectoryWriter(const TrajectoryWriter&) = delete;
+  TrajectoryWriter& operator=(const TrajectoryWriter&) = delete;
+  void write_frame(const World& w, long frame);
+  void close();
+
+ private:
+  std::FILE* f_ = nullptr;
+  std::string path_;
+};
+
+}  // namespace crowdmpm

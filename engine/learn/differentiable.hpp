@@ -1,0 +1,44 @@
+#pragma once
+// Reverse-mode gradients of a loss over a window of steps (DESIGN.md section 4). The forward
+// pass stores each step's particle state (x, v, C, J, heading) and what its drive and traction
+// produced (accelerations, pair forces, headings used): 136 bytes per agent per step. The
+// backward pass rebuilds each step's neighbour lists and grid and runs the kernels' adjoints in
+// reverse order. Covers the crowd and fluid materials with the agent set fixed during the
+// window (an exit or a source inside it is an error).
+#include <functional>
+#include <vector>
+
+#include "engine/learn/adjoint.hpp"
+#include "engine/sim/simulation.hpp"
+
+namespace crowdmpm {
+
+struct ModelGradient {
+  double E = 0, gamma = 0, tension_scale = 0, tau = 0, v0_scale = 0, comfort_distance = 0, alignment_time = 0;
+  std::vector<double> network;  // TractionNet::parameters() order
+  std::vector<Vec2> x0, v0;     // initial positions and velocities, per particle (dense order at the start)
+};
+
+// dL/dx and dL/dv of the state after step k (k = 1..steps), per particle (both arrive zeroed,
+// sized to the agents); return false when the loss has no term at this step.
+using StateLossGrad = std::function<bool(int step, const World& w, std::vector<Vec2>& dL_dx, std::vector<Vec2>& dL_dv)>;
+
+class WindowGradient {
+ public:
+  // Checkpointing for long windows: keep the state of every K-th step only and run each
+  // segment of K steps forward again in the backward pass (one extra forward pass; memory for
+  // steps / K + K states instead of steps). 0 (default): no checkpoints, every state kept.
+  explicit WindowGradient(int checkpoint_every = 0) : checkpoint_every_(checkpoint_every) {}
+  // Runs `steps` steps of `sim` forward (it advances and ends at the window's last state),
+  // recording states, then the backward pass.
+  ModelGradient run(Simulation& sim, int steps, const StateLossGrad& loss_grad);
+  size_t stored_bytes_per_agent_step() const { return 6 * sizeof(Vec2) + sizeof(Mat2) + sizeof(double); }
+  // Most step states held at once during the last run (checkpoints included).
+  size_t peak_stored_steps() const { return peak_stored_steps_; }
+
+ private:
+  int checkpoint_every_ = 0;
+  size_t peak_stored_steps_ = 0;
+};
+
+}  // namespace crowdmpm

@@ -1,0 +1,71 @@
+#include "engine/learn/losses.hpp"
+
+#include <cmath>
+#include <limits>
+
+#include "engine/core/error.hpp"
+
+namespace crowdmpm {
+
+long TrajectoryTarget::samples() const {
+  long n = 0;
+  for (const auto& row : targets)
+    for (const Vec2& t : row) n += t.allFinite() ? 1 : 0;
+  return n;
+}
+
+void trajectory_loss_at(const std::vector<Vec2>& x, const std::vector<Vec2>& target, double weight, double& loss,
+                        std::vector<Vec2>* dL_dx) {
+  if (x.size() != target.size())
+    throw Error("trajectory loss: " + std::to_string(x.size()) + " positions against " + std::to_string(target.size()) +
+                " targets");
+  for (size_t p = 0; p < x.size(); ++p) {
+    if (!target[p].allFinite()) continue;
+    const Vec2 d = x[p] - target[p];
+    loss += weight * d.squaredNorm();
+    if (dL_dx) (*dL_dx)[p] += 2 * weight * d;
+  }
+}
+
+namespace {
+void check_field(const GridVelocityField& f, const Grid& g) {
+  if (f.nx != g.nx || f.ny != g.ny || std::abs(f.dx - g.dx) > 1e-12 || (f.origin - g.origin).norm() > 1e-9 ||
+      f.velocity.size() != g.nodes() || f.mask.size() != g.nodes())
+    throw Error("grid velocity loss: the observed field's grid (" + std::to_string(f.nx) + " x " + std::to_string(f.ny) +
+                " nodes, spacing " + std::to_string(f.dx) + " m) differs from the simulation's (" + std::to_string(g.nx) +
+                " x " + std::to_string(g.ny) + ", " + std::to_string(g.dx) + " m)");
+}
+
+}  // namespace
+
+double grid_velocity_loss(const std::vector<Vec2>& x, const std::vector<Vec2>& v, double mass, const Grid& shape,
+                          const GridVelocityField& observed, std::vector<Vec2>* dL_dx, std::vector<Vec2>* dL_dv) {
+  check_field(observed, shape);
+  const double norm = observed.mask_sum();
+  if (norm <= 0) return 0;
+  std::vector<double> M;
+  std::vector<Vec2> P;
+  grid_mass_momentum(x, v, mass, shape, M, P);
+  double loss = 0;
+  // dL/dP_i and dL/dM_i of f_i = M |P/M - u|^2 (times mask / norm).
+  std::vector<Vec2> dP(shape.nodes(), Vec2::Zero());
+  std::vector<double> dM(shape.nodes(), 0);
+  for (size_t i = 0; i < shape.nodes(); ++i) {
+    const double m = observed.mask[i];
+    if (m <= 0 || M[i] < 1e-9) continue;
+    const Vec2 vel = P[i] / M[i], r = vel - observed.velocity[i];
+    loss += m * M[i] * r.squaredNorm() / norm;
+    dP[i] = 2 * m * r / norm;
+    dM[i] = m * (r.squaredNorm() - 2 * r.dot(vel)) / norm;
+  }
+  if (dL_dx || dL_dv)
+    for (size_t p = 0; p < x.size(); ++p)
+      for_stencil_on_grid(shape.origin, shape.dx, shape.nx, shape.ny, x[p], [&](size_t i, double w, const Vec2& dw) {
+        if (M[i] < 1e-9) return;
+        if (dL_dv) (*dL_dv)[p] += w * mass * dP[i];
+        if (dL_dx) (*dL_dx)[p] += mass * (dP[i].dot(v[p]) + dM[i]) * dw;
+      });
+  return loss;
+}
+
+}  // namespace crowdmpm

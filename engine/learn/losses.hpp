@@ -1,0 +1,35 @@
+#pragma once
+// Losses of the learning problem (DESIGN.md section 4), each with its gradient with respect to
+// the particle state, for WindowGradient:
+// - trajectory loss: mean squared position error of agents against recorded positions, over the
+//   samples a mask keeps (people who have left the view, or entered it after the window
+//   started, are not compared);
+// - grid velocity loss: the mass-weighted grid velocity of the particles (quadratic B-spline
+//   P2G, the simulator's own transfer) against an observed velocity field on the same grid,
+//   over the nodes a mask keeps (what the video issue learns from).
+#include <vector>
+
+#include "engine/analysis/grid_velocity.hpp"
+
+namespace crowdmpm {
+
+// Recorded positions of a window's agents at some steps of the window: targets[s][p] is the
+// position of agent p (dense order at the window's start) after step steps[s]; NaN = not seen.
+struct TrajectoryTarget {
+  std::vector<int> steps;                 // increasing, >= 1
+  std::vector<std::vector<Vec2>> targets; // [sample][agent]
+  long samples() const;                   // (sample, agent) pairs with a finite target
+};
+
+// The trajectory loss over a whole window is sum over samples of |x - target|^2 / samples().
+// Adds one sample's share to `loss` and, when dL_dx is given, its gradient (same length as x).
+void trajectory_loss_at(const std::vector<Vec2>& x, const std::vector<Vec2>& target, double weight, double& loss,
+                        std::vector<Vec2>* dL_dx);
+
+// L = sum_i mask_i M_i |P_i / M_i - u_i|^2 / sum_i mask_i, with u the observed field (nodes with
+// M_i below 1e-9 contribute nothing). The gradient with respect to the particles' x and v is
+// added to dL_dx, dL_dv when given. Throws Error if the field's grid differs from `shape`.
+double grid_velocity_loss(const std::vector<Vec2>& x, const std::vector<Vec2>& v, double mass, const Grid& shape,
+                          const GridVelocityField& observed, std::vector<Vec2>* dL_dx, std::vector<Vec2>* dL_dv);
+
+}  // namespace crowdmpm

@@ -1,0 +1,615 @@
+#include "engine/learn/train.hpp"
+
+#include "engine/learn/losses.hpp"
+#include "engine/learn/optim.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace crowdmpm {
+
+const std::vector<std::string>& differentiable_params() {
+  static const std::vector<std::string> names = {"E",        "gamma",           "tension_scale", "tau",
+                                                 "v0_scale", "comfort_distance", "alignment_time"};
+  return names;
+}
+
+const std::vector<std::string>& social_force_params() {
+  static const std::vector<std::string> names = {"tau", "v0_scale", "sf_A", "sf_B", "sf_k", "sf_kappa"};
+  return names;
+}
+
+namespace {
+double gradient_of(const ModelGradient& g, const std::string& name) {
+  if (name == "E") return g.E;
+  if (name == "gamma") return g.gamma;
+  if (name == "tension_scale") return g.tension_scale;
+  if (name == "tau") return g.tau;
+  if (name == "v0_scale") return g.v0_scale;
+  if (name == "comfort_distance") return g.comfort_distance;
+  if (name == "alignment_time") return g.alignment_time;
+  throw Error("parameter '" + name + "' has no gradient; learnable by gradient: E, gamma, tension_scale, tau, "
+              "v0_scale, comfort_distance, alignment_time");
+}
+
+const ParamInfo& info_of(const std::string& name) {
+  for (const auto& p : param_table())
+    if (name == p.name) return p;
+  std::string known;
+  for (const auto& p : param_table()) known += (known.empty() ? "" : ", ") + std::string(p.name);
+  throw Error("unknown model parameter '" + name + "' (known: " + known + ")");
+}
+
+// Smallest value a log-coordinate parameter is clamped to.
+double log_floor(const ParamInfo& p) { return std::max(p.lo, 1e-6); }
+}  // namespace
+
+ParamMap::ParamMap(const Model& m, std::vector<std::string> scalars, bool network) : scalars_(std::move(scalars)) {
+  if (scalars_.empty())
+    for (const auto& s : m.is_continuum() ? differentiable_params() : social_force_params())
+      if (!(s == "tension_scale" && m.material == MaterialKind::Fluid)) scalars_.push_back(s);
+  ModelGradient probe;
+  for (size_t i = 0; i < scalars_.size(); ++i) {
+    const std::string& s = scalars_[i];
+    info_of(s);  // throws for unknown names
+    if (m.is_continuum()) {
+      gradient_of(probe, s);  // throws for parameters without a gradient
+    } else if (std::find(social_force_params().begin(), social_force_params().end(), s) == social_force_params().end()) {
+      throw Error("parameter '" + s + "' is not learnable for the social_force model (learnable: tau, v0_scale, sf_A, sf_B, sf_k, sf_kappa)");
+    }
+    if (s == "tension_scale" && m.material == MaterialKind::Fluid)
+      throw Error("the fluid material is symmetric: tension_scale is fixed at 1 and cannot be learned");
+    for (size_t j = 0; j < i; ++j)
+      if (scalars_[j] == s) throw Error("parameter '" + s + "' is listed twice");
+    log_.push_back(s != "tension_scale");
+    if (s == "E") e_index_ = static_cast<int>(i);
+    if (s == "gamma") gamma_index_ = static_cast<int>(i);
+  }
+  if (e_index_ < 0 || gamma_index_ < 0) e_index_ = gamma_index_ = -1;
+  if (network && m.has_traction()) network_size_ = m.traction.parameter_count();
+}
+
+std::vector<double> ParamMap::get(const Model& m) const {
+  std::vector<double> u;
+  for (size_t i = 0; i < scalars_.size(); ++i) {
+    double p = m.get(scalars_[i]);
+    u.push_back(log_[i] ? std::log(std::max(p, log_floor(info_of(scalars_[i])))) : p);
+  }
+  // E and gamma together: the first coordinate is log(E gamma), the stiffness at J = 1.
+  if (e_index_ >= 0) u[static_cast<size_t>(e_index_)] += u[static_cast<size_t>(gamma_index_)];
+  if (network_size_) {
+    std::vector<double> th = m.traction.parameters();
+    u.insert(u.end(), th.begin(), th.end());
+  }
+  return u;
+}
+
+void ParamMap::set(Model& m, const std::vector<double>& u_in) const {
+  if (u_in.size() != size()) throw Error("ParamMap::set: expected " + std::to_string(size()) + " values");
+  std::vector<double> u = u_in;
+  auto bounded = [&](size_t i, double p) {
+    const ParamInfo& info = info_of(scalars_[i]);
+    double lo = log_[i] ? log_floor(info) : info.lo;
+    // The pair traction needs comfort distances above the contact epsilon.
+    if (scalars_[i] == "comfort_distance") lo = std::max(lo, 2 * m.params.contact_epsilon);
+    return std::clamp(p, lo, info.hi);
+  };
+  if (e_index_ >= 0) {
+    // Gamma first (clamped), then E from the stiffness E gamma, so that a gamma held at a
+    // bound does not change the stiffness.
+    const double gamma = bounded(static_cast<size_t>(gamma_index_), std::exp(u[static_cast<size_t>(gamma_index_)]));
+    u[static_cast<size_t>(gamma_index_)] = std::log(gamma);
+    u[static_cast<size_t>(e_index_)] -= std::log(gamma);
+  }
+  for (size_t i = 0; i < scalars_.size(); ++i) m.set(scalars_[i], bounded(i, log_[i] ? std::exp(u[i]) : u[i]));
+  if (network_size_) m.traction.set_parameters(std::vector<double>(u.begin() + static_cast<long>(scalars_.size()), u.end()));
+}
+
+std::vector<double> ParamMap::gradient(const Model& m, const ModelGradient& g) const {
+  std::vector<double> d;
+  for (size_t i = 0; i < scalars_.size(); ++i) {
+    double gi = gradient_of(g, scalars_[i]);
+    d.push_back(log_[i] ? gi * m.get(scalars_[i]) : gi);  // dL/dlog p = p dL/dp
+  }
+  // With u_E = log E + log gamma and u_g = log gamma: dL/du_E = dL/dlog E and
+  // dL/du_g = dL/dlog gamma - dL/dlog E.
+  if (e_index_ >= 0) d[static_cast<size_t>(gamma_index_)] -= d[static_cast<size_t>(e_index_)];
+  if (network_size_) d.insert(d.end(), g.network.begin(), g.network.end());
+  return d;
+}
+
+void make_windows(const std::vector<TrainDataset>& data, const TrainOptions& o, std::vector<TrainWindow>& train,
+                  std::vector<TrainWindow>& validation) {
+  if (!(o.validation_fraction > 0 && o.validation_fraction < 1))
+    throw Error("validation fraction must be in (0, 1), got " + format_number(o.validation_fraction));
+  if (!(o.window > 0 && o.stride > 0)) throw Error("window and stride must be > 0 s");
+  train.clear();
+  validation.clear();
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  for (size_t d = 0; d < data.size(); ++d)
+    for (const TrajectorySet& t : data[d].recordings) {
+      const long history = std::lround(std::max(o.velocity_window, o.speed_window) * t.framerate);
+      const long length = std::lround(o.window * t.framerate);
+      if (length < 1)
+        throw Error(t.source + ": a window of " + format_number(o.window) + " s is shorter than one frame (" +
+                    format_number(1 / t.framerate) + " s)");
+      const long stride = std::max(1L, std::lround(o.stride * t.framerate));
+      std::vector<long> starts;
+      for (long f = t.frame_min() + history; f + length <= t.frame_max(); f += stride) starts.push_back(f);
+      const size_t n_val = static_cast<size_t>(std::ceil(o.validation_fraction * static_cast<double>(starts.size())));
+      const size_t n_train = starts.size() - std::min(starts.size(), n_val);
+      const long val_start = n_train < starts.size() ? starts[n_train] : std::numeric_limits<long>::max();
+      for (size_t i = 0; i < starts.size(); ++i) {
+        const bool is_val = i >= n_train;
+        if (!is_val && starts[i] + length > val_start) continue;
+        TrainWindow w;
+        w.dataset = d;
+        w.start = observe_at(t, starts[i], o.velocity_window, o.speed_window);
+        if (w.start.ids.empty()) continue;
+        w.framerate = t.framerate;
+        std::vector<std::pair<long, size_t>> order;  // (recorded id, index in start)
+        for (size_t k = 0; k < w.start.ids.size(); ++k) order.emplace_back(w.start.ids[k], k);
+        std::sort(order.begin(), order.end());
+        for (long k = 1; k <= length; ++k) {
+          std::vector<Vec2> row(w.start.ids.size(), Vec2(nan, nan));
+          auto [b, e] = t.frame(starts[i] + k);
+          for (auto p = b; p != e; ++p) {
+            auto it = std::lower_bound(order.begin(), order.end(), std::make_pair(p->id, size_t{0}));
+            if (it != order.end() && it->first == p->id) row[it->second] = Vec2(p->x, p->y);
+          }
+          w.seen.push_back(std::move(row));
+        }
+        (is_val ? validation : train).push_back(std::move(w));
+      }
+    }
+}
+
+double window_loss(const ScenarioDef& windowed, const TrainWindow& tw, const Model& m, const TrainOptions& o,
+                   ModelGradient* grad) {
+  WindowSim ws = start_window(windowed, m, tw.start, WindowOptions{o.threads, o.desired_speed});
+  Simulation& sim = *ws.sim;
+  const size_t n = sim.world().size();
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  if (n == 0) return nan;
+  // Targets in dense order (agents were added in observed order, none removed).
+  TrajectoryTarget target;
+  for (size_t k = 0; k < tw.seen.size(); ++k) {
+    const int step = static_cast<int>(std::lround(static_cast<double>(k + 1) / tw.framerate / windowed.dt));
+    if (step < 1 || (!target.steps.empty() && step <= target.steps.back())) continue;
+    std::vector<Vec2> row(n, Vec2(nan, nan));
+    for (size_t i = 0; i < ws.ids.size(); ++i)
+      if (ws.ids[i]) row[static_cast<size_t>(sim.world().index_of(ws.ids[i]))] = tw.seen[k][i];
+    target.steps.push_back(step);
+    target.targets.push_back(std::move(row));
+  }
+  if (target.samples() == 0) return nan;
+  const int steps = target.steps.back();
+  // Per target step: the loss term at the state after it, and its gradient when asked for.
+  std::function<double(size_t, const World&, std::vector<Vec2>*, std::vector<Vec2>*)> term;
+  if (o.loss == TrainOptions::Loss::Trajectory) {
+    const double weight = 1.0 / static_cast<double>(target.samples());
+    term = [&, weight](size_t s, const World& w, std::vector<Vec2>* dx, std::vector<Vec2>*) {
+      double l = 0;
+      trajectory_loss_at(w.x, target.targets[s], weight, l, dx);
+      return l;
+    };
+  } else {
+    // The recorded velocity field at each target step: positions and one-frame velocities of
+    // the people seen in both frames, transferred to the simulation's grid.
+    std::vector<GridVelocityField> fields;
+    size_t used = 0;
+    std::vector<Vec2> start_x(n, Vec2(nan, nan));  // dense order
+    for (size_t i = 0; i < ws.ids.size(); ++i)
+      if (ws.ids[i]) start_x[static_cast<size_t>(sim.world().index_of(ws.ids[i]))] = tw.start.x[i];
+    for (size_t s = 0; s < target.steps.size(); ++s) {
+      const auto& now = target.targets[s];
+      std::vector<Vec2> xs, vs;
+      for (size_t p = 0; p < n; ++p) {
+        // The frame before: the previous target row, or the start state for the first one.
+        const Vec2 before = s > 0 ? target.targets[s - 1][p] : start_x[p];
+        if (!now[p].allFinite() || !before.allFinite()) continue;
+        const double gap = (target.steps[s] - (s > 0 ? target.steps[s - 1] : 0)) * windowed.dt;
+        xs.push_back(now[p]);
+        vs.push_back((now[p] - before) / gap);
+      }
+      fields.push_back(grid_velocity_of(xs, vs, 1, sim.grid(), o.grid_min_mass));
+      used += fields.back().mask_sum() > 0 ? 1 : 0;
+    }
+    if (used == 0) return nan;
+    const double mass = m.params.mass, weight = 1.0 / static_cast<double>(used);
+    term = [&, fields = std::move(fields), mass, weight](size_t s, const World& w, std::vector<Vec2>* dx, std::vector<Vec2>* dv) {
+      if (fields[s].mask_sum() <= 0) return 0.0;
+      std::vector<Vec2> gx, gv;
+      if (dx) {
+        gx.assign(w.size(), Vec2::Zero());
+        gv.assign(w.size(), Vec2::Zero());
+      }
+      const double l = grid_velocity_loss(w.x, w.v, mass, sim.grid(), fields[s], dx ? &gx : nullptr, dx ? &gv : nullptr);
+      if (dx)
+        for (size_t p = 0; p < w.size(); ++p) {
+          (*dx)[p] += weight * gx[p];
+          (*dv)[p] += weight * gv[p];
+        }
+      return weight * l;
+    };
+  }
+  double loss = 0;
+  size_t next = 0;
+  if (!grad) {
+    for (int k = 1; k <= steps; ++k) {
+      sim.step();
+      if (target.steps[next] == k) loss += term(next++, sim.world(), nullptr, nullptr);
+    }
+    return loss;
+  }
+  int every = o.checkpoint_every;
+  if (every <= 0 && static_cast<double>(steps) * static_cast<double>(n) * static_cast<double>(WindowGradient().stored_bytes_per_agent_step()) > o.max_stored_bytes)
+    every = static_cast<int>(std::ceil(std::sqrt(static_cast<double>(steps))));
+  WindowGradient wg(every);
+  *grad = wg.run(sim, steps, [&](int k, const World& w, std::vector<Vec2>& dx, std::vector<Vec2>& dv) {
+    if (next >= target.steps.size() || target.steps[next] != k) return false;
+    loss += term(next++, w, &dx, &dv);
+    return true;
+  });
+  return loss;
+}
+
+TrainResult train_model(const std::vector<TrainDataset>& data, const Model& start, const TrainOptions& o,
+                        const TrainCallback& progress) {
+  std::vector<TrainWindow> train, val;
+  make_windows(data, o, train, val);
+  std::vector<ScenarioDef> scenarios;
+  for (const auto& d : data) scenarios.push_back(d.scenario);
+  return train_on_windows(scenarios, train, val, start, o, progress);
+}
+
+TrainResult train_on_windows(const std::vector<ScenarioDef>& scenarios, const std::vector<TrainWindow>& train,
+                             const std::vector<TrainWindow>& val, const Model& start, const TrainOptions& o,
+                             const TrainCallback& progress) {
+  if (start.material == MaterialKind::Elastic) throw Error("training covers the crowd, fluid and social_force models, not elastic");
+  if (train.empty() || val.empty())
+    throw Error("training needs recordings long enough for windows of " + format_number(o.window) +
+                " s for both training and validation (got " + std::to_string(train.size()) + " training and " +
+                std::to_string(val.size()) + " validation windows)");
+  std::vector<ScenarioDef> windowed;
+  for (const auto& s : scenarios) windowed.push_back(window_scenario(s, false));
+  for (const auto* set : {&train, &val})
+    for (size_t i = 0; i < set->size(); ++i) {
+      const TrainWindow& w = (*set)[i];
+      const std::string where = std::string(set == &train ? "training" : "validation") + " window " + std::to_string(i);
+      if (w.dataset >= windowed.size())
+        throw Error(where + " names scenario " + std::to_string(w.dataset) + " of " + std::to_string(windowed.size()));
+      const size_t n = w.start.ids.size();
+      if (w.start.x.size() != n || w.start.v.size() != n || (!w.start.speed.empty() && w.start.speed.size() != n))
+        throw Error(where + ": start state has " + std::to_string(n) + " ids but " + std::to_string(w.start.x.size()) +
+                    " positions, " + std::to_string(w.start.v.size()) + " velocities and " + std::to_string(w.start.speed.size()) + " speeds");
+      if (!(w.framerate > 0) || !std::isfinite(w.framerate)) throw Error(where + ": frame rate must be > 0, got " + format_number(w.framerate));
+      if (w.seen.empty()) throw Error(where + " has no recorded frames");
+      for (size_t k = 0; k < w.seen.size(); ++k)
+        if (w.seen[k].size() != n)
+          throw Error(where + ": frame " + std::to_string(k + 1) + " has " + std::to_string(w.seen[k].size()) + " positions for " + std::to_string(n) + " people");
+    }
+
+  TrainResult res;
+  res.train_windows = train.size();
+  res.validation_windows = val.size();
+  Model model = start;
+  const ParamMap map(model, o.params, o.learn_network);
+  std::vector<double> u = map.get(model);
+  map.set(model, u);  // clamp the start into bounds the way every later step is
+  double lr = o.learning_rate;
+  Adam adam(u.size(), lr);
+  adam.set_clip_norm(o.clip_norm);
+  Rng rng(o.seed);
+
+  // Windows are independent: with several threads each runs whole windows on one thread
+  // (simulation and backward pass), and their results are summed in window order, so training
+  // gives the same model for any thread count.
+  ThreadPool pool(std::max(1, o.threads));
+  TrainOptions one = o;
+  one.threads = 1;
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  auto validation_loss = [&](const Model& m) {
+    std::vector<double> ls(val.size(), nan);
+    std::vector<char> broke(val.size(), 0);
+    pool.parallel_for(val.size(), [&](size_t b, size_t e) {
+      for (size_t j = b; j < e; ++j) {
+        try {
+          ls[j] = window_loss(windowed[val[j].dataset], val[j], m, one, nullptr);
+        } catch (const Error&) {
+          broke[j] = 1;
+        }
+      }
+    }, 1);
+    double sum = 0;
+    long n = 0;
+    for (size_t j = 0; j < val.size(); ++j) {
+      if (broke[j]) return std::numeric_limits<double>::infinity();  // this model breaks a simulation: not a candidate
+      if (std::isfinite(ls[j])) {
+        sum += ls[j];
+        ++n;
+      }
+    }
+    return n ? sum / static_cast<double>(n) : nan;
+  };
+
+  res.initial_validation = res.best_validation = validation_loss(model);
+  if (!std::isfinite(res.initial_validation))
+    throw Error("training: the starting model cannot be scored on the validation windows (loss " +
+                format_number(res.initial_validation) + "): no person could be compared, or its simulations fail");
+  res.model = model;
+  int since_best = 0;
+  // Full passes over the training windows in a seeded random order, `batch` windows a step.
+  std::vector<size_t> order(train.size());
+  size_t cursor = order.size();
+  // Mean loss of some training windows and its gradient in the optimiser's coordinates.
+  // One window's loss and, when asked, its gradient in the optimiser's coordinates; NaN loss
+  // when it cannot be compared, `failed` when its simulation broke.
+  struct WindowResult {
+    double loss = std::numeric_limits<double>::quiet_NaN();
+    std::vector<double> grad;
+    bool failed = false;
+  };
+  auto one_window = [&](const Model& m, const TrainWindow& w, bool want_grad) {
+    WindowResult r;
+    try {
+      ModelGradient mg;
+      r.loss = window_loss(windowed[w.dataset], w, m, one, want_grad && m.is_continuum() ? &mg : nullptr);
+      if (want_grad && std::isfinite(r.loss)) {
+        if (m.is_continuum()) {
+          r.grad = map.gradient(m, mg);
+        } else {
+          // The social force model has no adjoint here: central differences in the
+          // optimiser's coordinates (a few scalars; each costs two forward runs).
+          const std::vector<double> u0 = map.get(m);
+          const double h = 3e-3;
+          for (size_t k = 0; k < u0.size(); ++k) {
+            double side[2];
+            for (int sgn = 0; sgn < 2; ++sgn) {
+              std::vector<double> uk = u0;
+              uk[k] += sgn ? -h : h;
+              Model mk = m;
+              map.set(mk, uk);
+              side[sgn] = window_loss(windowed[w.dataset], w, mk, one, nullptr);
+            }
+            r.grad.push_back((side[0] - side[1]) / (2 * h));
+          }
+        }
+        for (double x : r.grad) r.failed = r.failed || !std::isfinite(x);
+      }
+    } catch (const Error&) {
+      r.failed = true;
+    }
+    return r;
+  };
+  // Mean loss of some training windows and its gradient in the optimiser's coordinates.
+  auto batch_loss = [&](const Model& m, const std::vector<size_t>& idx, std::vector<double>* g, int* n_used = nullptr) {
+    std::vector<WindowResult> rs(idx.size());
+    pool.parallel_for(idx.size(), [&](size_t b, size_t e) {
+      for (size_t j = b; j < e; ++j) rs[j] = one_window(m, train[idx[j]], g != nullptr);
+    }, 1);
+    if (g) g->assign(u.size(), 0.0);
+    double loss_sum = 0;
+    int used = 0;
+    for (const WindowResult& r : rs) {
+      if (r.failed) {
+        ++res.skipped_windows;
+        continue;
+      }
+      if (!std::isfinite(r.loss)) continue;
+      if (g)
+        for (size_t k = 0; k < r.grad.size(); ++k) (*g)[k] += r.grad[k];
+      loss_sum += r.loss;
+      ++used;
+    }
+    if (n_used) *n_used = used;
+    if (used == 0) return std::numeric_limits<double>::quiet_NaN();
+    if (g)
+      for (double& x : *g) x /= used;
+    return loss_sum / used;
+  };
+  std::vector<size_t> all(train.size());
+  for (size_t i = 0; i < all.size(); ++i) all[i] = i;
+  Lbfgs lbfgs;
+  std::vector<double> g_full;
+  int used_full = 0, failed_searches = 0;
+  double f_full = o.optimizer == TrainOptions::Optimizer::Lbfgs ? batch_loss(model, all, &g_full, &used_full) : 0;
+
+  for (int it = 1; it <= o.iterations; ++it) {
+    TrainProgress pr;
+    pr.iteration = it;
+    pr.validation_loss = std::numeric_limits<double>::quiet_NaN();
+    if (o.optimizer == TrainOptions::Optimizer::Adam) {
+      std::vector<size_t> idx;
+      for (int b = 0; b < o.batch && b < static_cast<int>(train.size()); ++b) {
+        if (cursor == order.size()) {
+          for (size_t i = 0; i < order.size(); ++i) order[i] = i;
+          for (size_t i = order.size(); i > 1; --i) std::swap(order[i - 1], order[static_cast<size_t>(rng.next() % i)]);
+          cursor = 0;
+        }
+        idx.push_back(order[cursor++]);
+      }
+      std::vector<double> g;
+      pr.train_loss = batch_loss(model, idx, &g);
+      if (std::isfinite(pr.train_loss)) {
+        pr.grad_norm = adam.step(u, g);
+        map.set(model, u);
+        u = map.get(model);  // clamped values back into the optimiser's coordinates
+      } else {
+        // Every window of the batch failed with these parameters (an unstable simulation):
+        // back to the best model so far, with smaller steps.
+        model = res.model;
+        u = map.get(model);
+        lr *= o.lr_decay < 1 ? o.lr_decay : 0.5;
+        adam.set_learning_rate(lr);
+      }
+    } else {
+      if (!std::isfinite(f_full)) throw Error("training: no training window could be simulated with the starting model");
+      std::vector<double> d = lbfgs.direction(g_full);
+      double slope = 0, gnorm = 0;
+      for (size_t k = 0; k < d.size(); ++k) {
+        slope += d[k] * g_full[k];
+        gnorm += g_full[k] * g_full[k];
+      }
+      pr.grad_norm = std::sqrt(gnorm);
+      if (!(slope < 0)) {  // not a descent direction: restart from the gradient
+        lbfgs.reset();
+        d = lbfgs.direction(g_full);
+        slope = -gnorm;
+      }
+      // The first step is at most 0.1 in the optimiser's coordinates (10% of a positive scalar).
+      double step_len = 0;
+      for (double x : d) step_len += x * x;
+      double alpha = lbfgs.empty() ? std::min(1.0, 0.1 / std::sqrt(step_len)) : 1.0;
+      bool accepted = false;
+      int tries = 0;
+      for (; tries < 30 && !accepted; ++tries) {
+        if (tries > 0) alpha *= 0.5;
+        std::vector<double> u_try = u;
+        for (size_t k = 0; k < u.size(); ++k) u_try[k] += alpha * d[k];
+        Model trial = model;
+        map.set(trial, u_try);
+        u_try = map.get(trial);
+        std::vector<double> g_try;
+        int used_try = 0;
+        const double f_try = batch_loss(trial, all, &g_try, &used_try);
+        // A trial that breaks windows the reference simulated is not comparable: rejected.
+        if (std::isfinite(f_try) && used_try >= used_full && f_try <= f_full + 1e-4 * alpha * slope) {
+          std::vector<double> s(u.size()), y(u.size());
+          for (size_t k = 0; k < u.size(); ++k) {
+            s[k] = u_try[k] - u[k];
+            y[k] = g_try[k] - g_full[k];
+          }
+          lbfgs.update(s, y);
+          u = u_try;
+          model = trial;
+          f_full = f_try;
+          g_full = g_try;
+          used_full = used_try;
+          accepted = true;
+        }
+      }
+      pr.train_loss = f_full;
+      // A failed line search, or one that had to halve the step ten times, means the curvature
+      // pairs no longer describe the loss here (it is only piecewise smooth: contacts begin and
+      // end): forget them and go on from the gradient. Two failures in a row at the same point
+      // from the gradient itself: nothing left to gain, stop.
+      if (!accepted && lbfgs.empty()) {
+        if (++failed_searches >= 2) res.early_stopped = true;
+      } else {
+        failed_searches = 0;
+      }
+      if (!accepted || tries > 10) lbfgs.reset();
+    }
+    res.iterations = it;
+    if (it % o.eval_every == 0 || it == o.iterations) {
+      pr.validation_loss = validation_loss(model);
+      if (pr.validation_loss < res.best_validation) {
+        res.best_validation = pr.validation_loss;
+        res.best_iteration = it;
+        res.model = model;
+        pr.improved = true;
+        since_best = 0;
+      } else if (++since_best >= o.patience) {
+        res.early_stopped = true;
+      } else if (o.lr_decay < 1 && o.optimizer == TrainOptions::Optimizer::Adam) {
+        // No improvement: go back to the best point and take smaller steps from there.
+        lr *= o.lr_decay;
+        adam.set_learning_rate(lr);
+        model = res.model;
+        u = map.get(model);
+      }
+    }
+    res.history.push_back(pr);
+    if (progress) progress(pr);
+    if (res.early_stopped) break;
+  }
+  return res;
+}
+
+namespace {
+std::string resolve_path(const std::string& base, const std::string& p) {
+  if (base.empty() || p.empty() || p[0] == '/') return p;
+  return base + "/" + p;
+}
+}  // namespace
+
+TrainJob parse_train_job(const json& request, const std::string& base_dir) {
+  JsonReader r(request, "");
+  r.require_object();
+  r.allow_only({"datasets", "model", "material", "options"});
+  TrainJob job;
+  JsonReader ds = r.at("datasets");
+  if (ds.size() == 0) ds.fail("needs at least one {\"scenario\", \"trajectories\"} entry");
+  for (size_t i = 0; i < ds.size(); ++i) {
+    JsonReader d = ds.item(i);
+    d.require_object();
+    d.allow_only({"scenario", "trajectories"});
+    TrainDataset set{ScenarioDef::load(resolve_path(base_dir, d.string("scenario", std::nullopt))), {}};
+    JsonReader ts = d.at("trajectories");
+    if (ts.size() == 0) ts.fail("needs at least one trajectory file");
+    for (size_t k = 0; k < ts.size(); ++k) {
+      const std::string f = resolve_path(base_dir, ts.item(k).as_string());
+      set.recordings.push_back(TrajectorySet::read(f));
+      job.files.push_back(f);
+    }
+    job.data.push_back(std::move(set));
+  }
+  if (r.has("model") && r.has("material")) r.fail("give \"model\" or \"material\", not both");
+  if (r.has("model")) job.start = Model::load(resolve_path(base_dir, r.string("model", std::nullopt)));
+  else if (r.has("material"))
+    job.start = Model::default_of(r.one_of("material", {"crowd", "fluid", "social_force"}, std::nullopt));
+  else job.start = job.data[0].scenario.model_or_default();
+  TrainOptions& o = job.options;
+  if (auto op = r.get("options")) {
+    op->require_object();
+    op->allow_only({"window", "stride", "iterations", "batch", "learning_rate", "clip", "validation", "eval_every",
+                    "patience", "seed", "threads", "params", "learn_network", "loss", "desired_speed"});
+    o.window = op->in_range("window", 1e-3, 1e4, o.window);
+    o.stride = op->in_range("stride", 1e-3, 1e4, o.stride);
+    o.iterations = op->integer("iterations", 1, 1000000, o.iterations);
+    o.batch = op->integer("batch", 1, 10000, o.batch);
+    o.learning_rate = op->in_range("learning_rate", 1e-9, 10, o.learning_rate);
+    o.clip_norm = op->in_range("clip", 0, 1e12, o.clip_norm);
+    o.validation_fraction = op->in_range("validation", 0.01, 0.9, o.validation_fraction);
+    o.eval_every = op->integer("eval_every", 1, 1000000, o.eval_every);
+    o.patience = op->integer("patience", 1, 1000000, o.patience);
+    o.seed = static_cast<uint64_t>(op->integer("seed", 0, 2000000000, static_cast<long>(o.seed)));
+    o.threads = op->integer("threads", 1, 256, o.threads);
+    o.learn_network = op->boolean("learn_network", o.learn_network);
+    o.loss = op->one_of("loss", {"trajectory", "grid_velocity"}, "trajectory") == "trajectory" ? TrainOptions::Loss::Trajectory
+                                                                                                : TrainOptions::Loss::GridVelocity;
+    o.desired_speed = op->one_of("desired_speed", {"observed", "scenario"}, "observed") == "observed"
+                          ? DesiredSpeed::Observed
+                          : DesiredSpeed::Scenario;
+    if (auto ps = op->get("params")) {
+      for (size_t i = 0; i < ps->size(); ++i) o.params.push_back(ps->item(i).as_string());
+      if (o.params.empty()) ps->fail("needs at least one parameter name");
+    }
+  }
+  ParamMap check(job.start, o.params, o.learn_network);  // unknown or unlearnable names fail here
+  return job;
+}
+
+Model describe_learned(const TrainJob& job, const TrainResult& r) {
+  Model m = r.model;
+  m.name = std::string("learned ") + material_name(m.material);
+  std::string from;
+  for (const auto& f : job.files) {
+    const size_t slash = f.find_last_of('/');
+    from += (from.empty() ? "" : ", ") + (slash == std::string::npos ? f : f.substr(slash + 1));
+  }
+  const bool traj = job.options.loss == TrainOptions::Loss::Trajectory;
+  m.description = "Learned by crowdmpm train from " + from + " (" + std::to_string(r.train_windows) + " training, " +
+                  std::to_string(r.validation_windows) + " validation windows of " + format_number(job.options.window) +
+                  " s); validation " + (traj ? "trajectory" : "grid velocity") + " loss " +
+                  format_number(r.initial_validation) + " " + (traj ? "m2" : "(m/s)2") + " at the start, " +
+                  format_number(r.best_validation) + " at iteration " + std::to_string(r.best_iteration) + " of " +
+                  std::to_string(r.iterations) + ".";
+  return m;
+}
+
+void save_model(const Model& m, const std::string& path) { save_json_file(m.to_json(), path); }
+
+}  // namespace crowdmpm

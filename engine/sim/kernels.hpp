@@ -1,0 +1,135 @@
+#pragma once
+// One MPM step of the crowd material, kernel by kernel (DESIGN.md section 2). Each kernel is a
+// function of the arrays it names; outputs are per particle or per grid node and never shared
+// between threads, so results do not depend on the thread count. P2G scatters particles sorted
+// by stencil base in row blocks that never share a node (even blocks, then odd), not with atomics.
+#include <vector>
+
+#include "engine/sim/stencil.hpp"
+#include "engine/geometry/geometry.hpp"
+#include "engine/sim/model.hpp"
+#include "engine/geometry/navigation.hpp"
+#include "engine/core/parallel.hpp"
+#include "engine/sim/world.hpp"
+
+namespace crowdmpm {
+
+struct Behaviour {
+  enum class Kind { None, Goal, Orbit, Attract };
+  Kind kind = Kind::None;
+  int nav = -1;                  // Goal, Orbit around a structure: index of the navigation field
+  const Shape* target = nullptr; // Goal: agents inside a (non-exit) goal stop
+  Vec2 point = Vec2::Zero();     // Orbit: centre; Attract: the point
+  double sign = 1;               // Orbit: +1 counter-clockwise, -1 clockwise
+  double inward = 0;             // Orbit: weight of the inward (centre-seeking) component
+  double arrive_radius = 0.5;    // Attract: agents within this distance stop, m
+};
+
+struct BodyForce {
+  enum class Kind { Uniform, Radial, Vortex };
+  Kind kind = Kind::Uniform;
+  Vec2 acceleration = Vec2::Zero();  // Uniform, m/s^2
+  Vec2 center = Vec2::Zero();        // Radial, Vortex
+  double strength = 0;               // m/s^2; Radial: > 0 attracts; Vortex: > 0 counter-clockwise
+  double range = 1e300;              // m
+  std::vector<char> applies_to;      // per group index; empty: every group
+  bool applies(int group) const {
+    return applies_to.empty() || (group >= 0 && group < static_cast<int>(applies_to.size()) && applies_to[group]);
+  }
+};
+
+// Background grid, fixed for the life of a world. Nodes at origin + dx (i, j).
+struct Grid {
+  Vec2 origin = Vec2::Zero();
+  double dx = 0.5;
+  int nx = 0, ny = 0;
+  std::vector<double> mass;
+  std::vector<Vec2> velocity;      // momentum during P2G, velocity after the grid update (v_new)
+  std::vector<Vec2> velocity_old;  // the same without the stress impulse and boundary conditions
+  std::vector<char> solid;     // node inside a solid
+  std::vector<Vec2> normal;    // outward normal of that solid
+  // Scratch, reused every step: particle stencil bases, binning, P2G payloads.
+  std::vector<int> bin_start, order, base, cursor;
+  std::vector<Vec2> momentum;
+  std::vector<Mat2> affine, stress;
+  std::vector<Stencil> stencils;
+
+  void init(const Geometry& geo, double cell);
+  size_t nodes() const { return static_cast<size_t>(nx) * ny; }
+  int node(int i, int j) const { return j * nx + i; }
+};
+
+// Cell lists for the pair traction: every pair within `range` lies within `span` cells.
+struct NeighbourGrid {
+  Vec2 origin = Vec2::Zero();
+  double h = 1;
+  double range = 0;  // interaction reach the cells were sized for
+  int span = 1;      // cells searched on each side: ceil(range / h)
+  int nx = 0, ny = 0;
+  std::vector<int> start, order, cell, cursor;
+  void init(const Geometry& geo, double reach, double min_cell = 0);
+  // Calls f(q) for every other particle q in the cells within `span` of p's cell, always in the
+  // same order (cells row by row, particles by index): the traction, its adjoint and the
+  // statistics share this one loop.
+  template <class F>
+  void for_each_candidate(size_t p, F&& f) const {
+    const int c0 = cell[p], ci = c0 % nx, cj = c0 / nx;
+    for (int dj = -span; dj <= span; ++dj)
+      for (int di = -span; di <= span; ++di) {
+        const int i = ci + di, j = cj + dj;
+        if (i < 0 || j < 0 || i >= nx || j >= ny) continue;
+        const int k = j * nx + i;
+        for (int s = start[static_cast<size_t>(k)]; s < start[static_cast<size_t>(k) + 1]; ++s) {
+          const size_t q = static_cast<size_t>(order[static_cast<size_t>(s)]);
+          if (q != p) f(q);
+        }
+      }
+  }
+  void build(const World& w, ThreadPool& pool);
+};
+
+struct StepInputs {
+  const Model& model;
+  const Geometry& geo;
+  const std::vector<NavField>& navs;
+  const std::vector<Behaviour>& behaviours;
+  const std::vector<BodyForce>& forces;
+  double dt;
+};
+
+// phi(d) of the pair traction for contact distance theta1, comfort distance c, smallest gap eps.
+double contact_potential(double d, double theta1, double c, double eps);
+// Continuum pressure P(J) of the crowd/fluid material (positive in compression).
+double material_pressure(const MaterialParams& p, double J);
+// Kirchhoff stress tau = J sigma of the particle's material.
+Mat2 kirchhoff_stress(const Model& m, const Mat2& F, double J);
+
+// Unit desired direction of a behaviour at x (zero where the agent stands still).
+Vec2 desired_direction(const StepInputs& in, const Behaviour& b, const Vec2& x);
+// One agent's drive (a_p, heading); kernel_drive applies it to every agent.
+void drive_point(const StepInputs& in, const Behaviour& beh, int group, const Vec2& x, const Vec2& v, double v0,
+                 const Vec2& prev_heading, Vec2& accel, Vec2& heading);
+// How far beyond body contact (r_p + r_q) a pair interacts: the comfort distance c for the
+// continuum materials' pair traction; for the social force, where the exponential repulsion
+// has decayed to e^-8 of its strength (8 B, at most 3 m).
+double interaction_margin(const Model& m, double comfort);
+// Social force (Helbing, Farkas & Vicsek 2000, with body compression and sliding friction), per
+// unit mass: for neighbours q with d = |x_p - x_q|, n = (x_p - x_q)/d, t = (-n_y, n_x),
+// r_pq = r_p + r_q, g(s) = max(s, 0):
+//   f_p += [A exp((r_pq - d)/B) + k g(r_pq - d)] n + kappa g(r_pq - d) ((v_q - v_p) . t) t
+// and from the nearest solid (distance d_w and outward normal n_w from the SDF, t_w its tangent):
+//   f_p += [A exp((r_p - d_w)/B) + k g(r_p - d_w)] n_w - kappa g(r_p - d_w) (v_p . t_w) t_w.
+// Writes pair_force, pair_virial (sum of f_pq . (x_p - x_q) over agents) and the reported
+// pressure (virial / (2 V), V = 1 / rest_density, as for the crowd material).
+void kernel_social_force(const StepInputs& in, const NeighbourGrid& nb, World& w, ThreadPool& pool);
+// One particle's projection out of solids; kernel_project applies it to every particle.
+void project_point(const StepInputs& in, Vec2& x, Vec2& v);
+void kernel_drive(const StepInputs& in, World& w, ThreadPool& pool);
+void kernel_traction(const StepInputs& in, const NeighbourGrid& nb, World& w, ThreadPool& pool);
+// Also writes each particle's reported pressure (it has the stress at hand).
+void kernel_p2g(const StepInputs& in, World& w, Grid& g, ThreadPool& pool);
+void kernel_grid_update(const StepInputs& in, Grid& g, ThreadPool& pool);
+void kernel_g2p(const StepInputs& in, const Grid& g, World& w, ThreadPool& pool);
+void kernel_project(const StepInputs& in, World& w, ThreadPool& pool);
+
+}  // namespace crowdmpm

@@ -1,0 +1,149 @@
+#include "engine/sim/model.hpp"
+
+namespace crowdmpm {
+
+namespace {
+const char* const kDefaultModelJson =
+#include "default_model.inc"
+    ;
+}
+
+const std::vector<ParamInfo>& param_table() {
+  static const std::vector<ParamInfo> table = {
+      {"E", &MaterialParams::E, 0, 1e6, "stress units (N per person per m)", true},
+      {"gamma", &MaterialParams::gamma, 0.1, 10, "1", true},
+      {"tension_scale", &MaterialParams::tension_scale, 0, 1, "1", true},
+      {"tau", &MaterialParams::tau, 0.01, 10, "s", true},
+      {"v0_scale", &MaterialParams::v0_scale, 0, 5, "1", true},
+      {"comfort_distance", &MaterialParams::comfort_distance, 0.01, 2, "m", true},
+      {"body_radius", &MaterialParams::body_radius, 0.05, 0.5, "m", false},
+      {"rest_density", &MaterialParams::rest_density, 0.1, 10, "persons/m^2", false},
+      {"mass", &MaterialParams::mass, 1e-3, 1e3, "1 per person", false},
+      {"poisson_ratio", &MaterialParams::poisson_ratio, 0, 0.49, "1", false},
+      {"wall_friction", &MaterialParams::wall_friction, 0, 1, "1", true},
+      {"max_speed", &MaterialParams::max_speed, 0.1, 20, "m/s", false},
+      {"contact_epsilon", &MaterialParams::contact_epsilon, 1e-4, 0.1, "m", false},
+      {"wall_clearance", &MaterialParams::wall_clearance, 0, 0.5, "m", false},
+      {"alignment_time", &MaterialParams::alignment_time, 1e-3, 1e3, "s", true},
+      {"sf_A", &MaterialParams::sf_A, 0, 1e4, "m/s^2", true},
+      {"sf_B", &MaterialParams::sf_B, 0.01, 1, "m", true},
+      {"sf_k", &MaterialParams::sf_k, 0, 1e5, "1/s^2", true},
+      {"sf_kappa", &MaterialParams::sf_kappa, 0, 1e5, "1/(m s)", true},
+  };
+  return table;
+}
+
+const char* material_name(MaterialKind k) {
+  switch (k) {
+    case MaterialKind::Crowd: return "crowd";
+    case MaterialKind::Fluid: return "fluid";
+    case MaterialKind::Elastic: return "elastic";
+    case MaterialKind::SocialForce: return "social_force";
+  }
+  return "crowd";
+}
+
+Model Model::default_model() {
+  return parse(JsonReader(parse_json_text(kDefaultModelJson, "<built-in default model>"), ""),
+               "<built-in default model>");
+}
+
+Model Model::default_of(const std::string& kind) {
+  Model m = default_model();
+  if (kind == "crowd") return m;
+  if (kind == "fluid") {
+    m.material = MaterialKind::Fluid;
+    m.params.tension_scale = 1;
+  } else if (kind == "social_force") {
+    m.material = MaterialKind::SocialForce;
+  } else if (kind == "elastic") {
+    m.material = MaterialKind::Elastic;
+  } else {
+    throw Error("unknown model kind '" + kind + "' (known: crowd, fluid, elastic, social_force)");
+  }
+  m.traction = TractionNet();
+  m.name = "default " + kind;
+  return m;
+}
+
+Model Model::load(const std::string& path) {
+  json j = load_json_file(path);
+  try {
+    return parse(JsonReader(j, ""), path);
+  } catch (const Error& e) {
+    throw Error(path + ": " + e.what());
+  }
+}
+
+Model Model::parse(const JsonReader& r, const std::string& source) {
+  r.require_object();
+  r.allow_only({"format", "version", "name", "description", "material", "parameters", "traction"});
+  if (r.string("format", std::nullopt) != "crowdmpm-model")
+    r.fail_at("format", "must be \"crowdmpm-model\"");
+  int version = r.integer("version", 1, 1000, std::nullopt);
+  if (version != 1) r.fail_at("version", "unsupported model version " + std::to_string(version) + " (this engine reads 1)");
+  Model m;
+  m.source = source;
+  m.name = r.string("name", std::string());
+  m.description = r.string("description", std::string());
+  std::string kind = r.one_of("material", {"crowd", "fluid", "elastic", "social_force"}, "crowd");
+  m.material = kind == "fluid"          ? MaterialKind::Fluid
+               : kind == "elastic"      ? MaterialKind::Elastic
+               : kind == "social_force" ? MaterialKind::SocialForce
+                                        : MaterialKind::Crowd;
+  if (m.material == MaterialKind::Fluid) m.params.tension_scale = 1;
+  if (auto p = r.get("parameters")) {
+    p->require_object();
+    std::vector<std::string> names;
+    for (const auto& info : param_table()) names.push_back(info.name);
+    p->allow_only(names);
+    for (const auto& info : param_table())
+      m.params.*info.field = p->in_range(info.name, info.lo, info.hi, m.params.*info.field);
+  }
+  if (m.material == MaterialKind::Fluid && m.params.tension_scale != 1)
+    r.fail_at("parameters.tension_scale", "the fluid material is symmetric: tension_scale must be 1");
+  auto t = r.get("traction");
+  if (m.material == MaterialKind::Crowd) {
+    if (!t) r.fail_at("traction", "is required for material \"crowd\" (a network or {\"constant\": K})");
+    m.traction = TractionNet::parse(*t);
+  } else if (t) {
+    t->fail(std::string("the ") + kind + " material has no traction network; remove this key");
+  }
+  return m;
+}
+
+json Model::to_json() const {
+  json j;
+  j["format"] = "crowdmpm-model";
+  j["version"] = 1;
+  if (!name.empty()) j["name"] = name;
+  if (!description.empty()) j["description"] = description;
+  j["material"] = material_name(material);
+  json p = json::object();
+  for (const auto& info : param_table()) p[info.name] = params.*info.field;
+  j["parameters"] = p;
+  if (has_traction()) j["traction"] = traction.to_json();
+  return j;
+}
+
+static const ParamInfo& find_param(const std::string& name) {
+  for (const auto& info : param_table())
+    if (name == info.name) return info;
+  std::string list;
+  for (const auto& info : param_table()) list += (list.empty() ? "" : ", ") + std::string(info.name);
+  throw Error("unknown material parameter \"" + name + "\" (known: " + list + ")");
+}
+
+double Model::get(const std::string& param) const { return params.*find_param(param).field; }
+
+void Model::set(const std::string& param, double value) {
+  const auto& info = find_param(param);
+  if (!(value >= info.lo && value <= info.hi))
+    throw Error("material parameter " + param + " must be in [" + format_number(info.lo) + ", " +
+                format_number(info.hi) + "] " + info.unit + ", got " + format_number(value));
+  if (material == MaterialKind::Fluid && param == "tension_scale" && value != 1)
+    throw Error("the fluid material is symmetric: tension_scale must be 1");
+  params.*info.field = value;
+}
+
+}  // namespace crowdmpm

@@ -1,0 +1,70 @@
+#pragma once
+// The crowd material: its kind, its scalar parameters and its traction network. Read from and
+// written to model JSON ("format": "crowdmpm-model"); see docs/model-format.md.
+#include <string>
+#include <vector>
+
+#include "engine/sim/traction.hpp"
+
+namespace crowdmpm {
+
+enum class MaterialKind { Crowd, Fluid, Elastic, SocialForce };
+
+struct MaterialParams {
+  double E = 20;                 // stiffness of the continuum stress
+  double gamma = 1;              // exponent of P(J) = E (J^-gamma - 1)
+  double tension_scale = 0;      // s_t: stress scale for J >= 1 (0: crowd scatters freely)
+  double tau = 0.5;              // relaxation time of the drive, s
+  double v0_scale = 1;           // multiplies every agent's desired speed
+  double comfort_distance = 0.3; // c, m (default for agents that do not set their own)
+  double body_radius = 0.2;      // r_b, m (default for agents)
+  double rest_density = 2;       // rho0, persons/m^2: particle volume V = 1/rho0
+  double mass = 1;               // per person
+  double poisson_ratio = 0.3;    // elastic material only
+  double wall_friction = 0;      // tangential velocity removed at walls, fraction per contact
+  double max_speed = 4;          // m/s: safety limit on particle speed
+  double contact_epsilon = 0.01; // m: smallest gap used in phi(d) = -log((d - 2 r_b)/c)
+  double wall_clearance = 0.1;   // m: particle centres are kept at least this far from solids
+  double alignment_time = 0.5;   // s: particle velocities relax towards the local grid flow (PIC share dt/this)
+  // social_force model (Helbing, Farkas & Vicsek 2000), per unit mass (their values / 80 kg):
+  double sf_A = 25;              // m/s^2: strength of the exponential repulsion A exp((r_pq - d)/B)
+  double sf_B = 0.08;            // m: its range
+  double sf_k = 1500;            // 1/s^2: body compression k g(r_pq - d)
+  double sf_kappa = 3000;        // 1/(m s): sliding friction kappa g(r_pq - d) dv_t
+};
+
+struct ParamInfo {
+  const char* name;
+  double MaterialParams::*field;
+  double lo, hi;
+  const char* unit;
+  bool learnable;
+};
+const std::vector<ParamInfo>& param_table();
+
+class Model {
+ public:
+  MaterialKind material = MaterialKind::Crowd;
+  MaterialParams params;
+  TractionNet traction;  // used by the crowd material only
+  std::string source;    // where it was loaded from, for messages
+  std::string name, description;  // free text, kept through load and save
+
+  static Model default_model();
+  // The default model's parameters as another kind (fluid: tension_scale 1; no traction
+  // network outside the crowd material). Throws Error for an unknown name.
+  static Model default_of(const std::string& kind);
+  static Model parse(const JsonReader& r, const std::string& source);
+  static Model load(const std::string& path);
+  json to_json() const;
+
+  bool has_traction() const { return material == MaterialKind::Crowd; }
+  bool is_continuum() const { return material != MaterialKind::SocialForce; }  // simulated with MPM
+  // Named access for the C ABI and the optimisers; throws Error on unknown names or bad values.
+  double get(const std::string& param) const;
+  void set(const std::string& param, double value);
+};
+
+const char* material_name(MaterialKind k);
+
+}  // namespace crowdmpm

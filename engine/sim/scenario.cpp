@@ -1,0 +1,313 @@
+#include "engine/sim/scenario.hpp"
+
+#include <cmath>
+
+namespace crowdmpm {
+
+static std::string dir_of(const std::string& path) {
+  auto pos = path.find_last_of('/');
+  return pos == std::string::npos ? "." : path.substr(0, pos);
+}
+
+static std::string resolve(const std::string& base, const std::string& p) {
+  return (!p.empty() && p[0] == '/') ? p : base + "/" + p;
+}
+
+static BehaviourDef parse_behaviour(const JsonReader& r) {
+  r.require_object();
+  BehaviourDef b;
+  b.path = r.path();
+  std::string type = r.one_of("type", {"goal", "orbit", "attract", "none"}, std::nullopt);
+  if (type == "none") {
+    r.allow_only({"type"});
+    b.kind = BehaviourDef::Kind::None;
+  } else if (type == "goal") {
+    r.allow_only({"type", "target"});
+    b.kind = BehaviourDef::Kind::Goal;
+    b.target = r.string("target", "nearest_exit");
+  } else if (type == "orbit") {
+    r.allow_only({"type", "center", "around", "direction", "inward"});
+    b.kind = BehaviourDef::Kind::Orbit;
+    if (r.has("center") == r.has("around"))
+      r.fail("orbit needs exactly one of \"center\" (a point) or \"around\" (the id of a goal or exit to circle)");
+    if (r.has("center")) b.point = r.vec2("center", std::nullopt);
+    else b.target = r.string("around", std::nullopt);
+    b.sign = r.one_of("direction", {"ccw", "cw"}, "ccw") == "ccw" ? 1 : -1;
+    b.inward = r.in_range("inward", -1, 1, 0.0);
+  } else {
+    r.allow_only({"type", "point", "arrive_radius"});
+    b.kind = BehaviourDef::Kind::Attract;
+    b.point = r.vec2("point", std::nullopt);
+    b.arrive_radius = r.non_negative("arrive_radius", 0.5);
+  }
+  return b;
+}
+
+static void parse_agent_fields(const JsonReader& r, GroupDef& g) {
+  g.velocity = r.vec2("velocity", Vec2::Zero());
+  g.desired_speed = r.in_range("desired_speed", 0, 12, 1.3);
+  if (r.has("body_radius")) g.body_radius = r.in_range("body_radius", 0.05, 0.5, std::nullopt);
+  if (r.has("comfort_distance")) g.comfort_distance = r.in_range("comfort_distance", 0.01, 2, std::nullopt);
+  g.behaviour = r.has("behaviour") ? parse_behaviour(r.at("behaviour")) : BehaviourDef{};
+  if (!r.has("behaviour")) g.behaviour.kind = BehaviourDef::Kind::Goal, g.behaviour.target = "nearest_exit",
+                           g.behaviour.path = r.child_path("behaviour");
+}
+
+static std::vector<NamedShape> parse_named_shapes(const JsonReader& arr, const std::string& what) {
+  std::vector<NamedShape> out;
+  for (size_t i = 0; i < arr.size(); ++i) {
+    auto e = arr.item(i);
+    e.require_object();
+    NamedShape ns;
+    ns.id = e.string("id", what + std::to_string(i));
+    ns.shape = parse_region(e, {"id"});
+    for (const auto& o : out)
+      if (o.id == ns.id) e.fail_at("id", "duplicate id \"" + ns.id + "\"");
+    out.push_back(std::move(ns));
+  }
+  return out;
+}
+
+ScenarioDef ScenarioDef::parse(const json& j, const std::string& source, const std::string& base_dir) {
+  JsonReader r(j, "");
+  r.require_object();
+  r.allow_only({"format", "version", "name", "description", "domain", "time", "seed", "model",
+                "geometry", "goals", "groups", "sources", "forces", "measurement_areas", "outputs",
+                "navigation"});
+  if (r.string("format", std::nullopt) != "crowdmpm-scenario")
+    r.fail_at("format", "must be \"crowdmpm-scenario\"");
+  int version = r.integer("version", 1, 1000, std::nullopt);
+  if (version != 1) r.fail_at("version", "unsupported scenario version " + std::to_string(version) + " (this engine reads 1)");
+  ScenarioDef s;
+  s.source = source;
+  s.base_dir = base_dir;
+  s.name = r.string("name", "scenario");
+  s.description = r.string("description", "");
+
+  auto dom = r.at("domain");
+  dom.require_object();
+  dom.allow_only({"min", "max", "cell_size"});
+  s.geo.lo = dom.vec2("min", std::nullopt);
+  s.geo.hi = dom.vec2("max", std::nullopt);
+  if (!(s.geo.hi.x() > s.geo.lo.x() && s.geo.hi.y() > s.geo.lo.y()))
+    dom.fail_at("max", "must be greater than domain.min in both x and y");
+  s.cell_size = dom.in_range("cell_size", 0.05, 10, 0.5);
+  Vec2 ext = s.geo.hi - s.geo.lo;
+  if (ext.x() / s.cell_size > 1e6 || ext.y() / s.cell_size > 1e6)
+    dom.fail_at("cell_size", "gives more than 1e6 grid cells along one side of the domain (" + format_number(ext.x()) +
+                                 " m x " + format_number(ext.y()) + " m); use a larger cell");
+  if (ext.x() / s.cell_size * ext.y() / s.cell_size > 2e7)
+    dom.fail_at("cell_size", "gives more than 2e7 grid cells for this domain (" + format_number(ext.x()) + " m x " +
+                                 format_number(ext.y()) + " m); use a larger cell");
+
+  // Default navigation cell: 0.1 m, coarser on venues so large that 0.1 m would exceed 1e7 cells.
+  s.nav_cell = std::max(0.1, std::ceil(std::sqrt(ext.x() * ext.y() / 1e7) * 100) / 100);
+  if (auto nav = r.get("navigation")) {
+    nav->require_object();
+    nav->allow_only({"cell_size"});
+    s.nav_cell = nav->in_range("cell_size", 0.02, 5, s.nav_cell);
+  }
+  if (ext.x() / s.nav_cell * ext.y() / s.nav_cell > 2e7 || ext.x() / s.nav_cell > 1e6 || ext.y() / s.nav_cell > 1e6)
+    r.fail_at("navigation.cell_size", "gives more than 2e7 navigation cells for this domain (" + format_number(ext.x()) +
+                                          " m x " + format_number(ext.y()) + " m); set a larger navigation.cell_size");
+
+  auto t = r.at("time");
+  t.require_object();
+  t.allow_only({"dt", "duration", "output_rate", "stop_when_empty"});
+  s.dt = t.in_range("dt", 1e-5, 0.1, 0.01);
+  s.duration = t.in_range("duration", 0, 1e6, std::nullopt);
+  s.output_rate = t.positive("output_rate", 10.0);
+  s.stop_when_empty = t.boolean("stop_when_empty", true);
+  double spf = 1.0 / (s.output_rate * s.dt);
+  if (spf < 1 - 1e-9) t.fail_at("output_rate", "is faster than the step rate 1/dt = " + format_number(1 / s.dt) + " per second");
+  if (spf > 1e7) t.fail_at("output_rate", "is so low that one frame takes more than 10,000,000 steps");
+  if (std::abs(spf - std::round(spf)) > 1e-6)
+    t.fail_at("output_rate", "1/(output_rate * dt) must be a whole number of steps, got " + format_number(spf));
+
+  s.seed = static_cast<uint64_t>(r.integer("seed", 0, 2147483647, 1));
+
+  if (auto m = r.get("model")) {
+    if (m->value().is_string()) {
+      std::string name = m->as_string();
+      if (name != "default") {
+        std::string path = resolve(base_dir, name);
+        try {
+          s.model = Model::load(path);
+        } catch (const Error& e) {
+          m->fail(std::string("cannot load model ") + e.what());
+        }
+      }
+    } else {
+      s.model = Model::parse(*m, source + " (model)");
+    }
+  }
+
+  if (auto g = r.get("geometry")) {
+    g->require_object();
+    g->allow_only({"walls", "obstacles", "exits"});
+    if (auto walls = g->get("walls"))
+      for (size_t i = 0; i < walls->size(); ++i) {
+        auto w = walls->item(i);
+        w.require_object();
+        w.allow_only({"id", "points", "thickness", "closed"});
+        auto pts = w.at("points").as_points(2);
+        if (w.boolean("closed", false)) pts.push_back(pts.front());
+        for (size_t k = 0; k + 1 < pts.size(); ++k)
+          if ((pts[k + 1] - pts[k]).norm() < 1e-9)
+            w.at("points").item(k + 1).fail("repeats the previous point (zero-length wall segment)");
+        s.geo.solids.push_back(Shape::polyline(pts, w.in_range("thickness", 0.01, 10, 0.2)));
+      }
+    if (auto obs = g->get("obstacles"))
+      for (size_t i = 0; i < obs->size(); ++i) s.geo.solids.push_back(parse_region(obs->item(i), {"id"}));
+    if (auto ex = g->get("exits")) s.geo.exits = parse_named_shapes(*ex, "exit");
+  }
+  if (auto goals = r.get("goals")) s.geo.goals = parse_named_shapes(*goals, "goal");
+  for (const auto& gl : s.geo.goals)
+    for (const auto& e : s.geo.exits)
+      if (gl.id == e.id) r.fail_at("goals", "id \"" + gl.id + "\" is also an exit id");
+  for (size_t i = 0; i < s.geo.exits.size(); ++i) {
+    const Shape& e = s.geo.exits[i].shape;
+    if (e.hi.x() <= s.geo.lo.x() || e.lo.x() >= s.geo.hi.x() || e.hi.y() <= s.geo.lo.y() || e.lo.y() >= s.geo.hi.y())
+      r.fail_at("geometry.exits[" + std::to_string(i) + "]", "lies outside the domain (exits must be inside domain.min..max)");
+  }
+
+  auto check_target = [&](const BehaviourDef& b) {
+    if (b.kind == BehaviourDef::Kind::Orbit && !b.target.empty() && !s.geo.find_target(b.target))
+      throw Error(b.path + ".around: no exit or goal with id \"" + b.target + "\"");
+    if (b.kind != BehaviourDef::Kind::Goal) return;
+    if (b.target == "nearest_exit") {
+      if (s.geo.exits.empty()) throw Error(b.path + ": behaviour goal \"nearest_exit\" needs at least one exit in geometry.exits");
+    } else if (!s.geo.find_target(b.target)) {
+      throw Error(b.path + ".target: no exit or goal with id \"" + b.target + "\"");
+    }
+  };
+  std::vector<std::string> agent_keys = {"id", "velocity", "desired_speed", "body_radius", "comfort_distance", "behaviour"};
+  if (auto groups = r.get("groups"))
+    for (size_t i = 0; i < groups->size(); ++i) {
+      auto gr = groups->item(i);
+      gr.require_object();
+      auto keys = agent_keys;
+      keys.insert(keys.end(), {"spawn", "count", "density"});
+      gr.allow_only(keys);
+      GroupDef g;
+      g.path = gr.path();
+      g.id = gr.string("id", "group" + std::to_string(i));
+      g.region = parse_region(gr.at("spawn"), {});
+      bool has_count = gr.has("count"), has_density = gr.has("density");
+      if (has_count == has_density) gr.fail("needs exactly one of \"count\" or \"density\"");
+      if (has_count) g.count = gr.integer("count", 0, 10000000, std::nullopt);
+      else g.density = gr.in_range("density", 1e-6, 12, std::nullopt);
+      parse_agent_fields(gr, g);
+      check_target(g.behaviour);
+      s.groups.push_back(std::move(g));
+    }
+  if (auto sources = r.get("sources"))
+    for (size_t i = 0; i < sources->size(); ++i) {
+      auto sr = sources->item(i);
+      sr.require_object();
+      auto keys = agent_keys;
+      keys.insert(keys.end(), {"region", "rate", "start", "end", "max_count"});
+      sr.allow_only(keys);
+      GroupDef g;
+      g.is_source = true;
+      g.path = sr.path();
+      g.id = sr.string("id", "source" + std::to_string(i));
+      g.region = parse_region(sr.at("region"), {});
+      g.rate = sr.in_range("rate", 1e-6, 1e5, std::nullopt);
+      g.start = sr.non_negative("start", 0.0);
+      g.end = sr.number("end", s.duration);
+      if (!(g.end > g.start)) sr.fail_at("end", "must be greater than start (" + format_number(g.start) + "), got " + format_number(g.end));
+      if (g.start >= s.duration)
+        sr.fail_at("start", "is at or after time.duration (" + format_number(s.duration) + " s): the source would never spawn");
+      if (sr.has("max_count")) {
+        g.max_count = sr.integer("max_count", 0, 10000000, std::nullopt);
+      } else {
+        double expected = std::ceil(g.rate * (std::min(g.end, s.duration) - g.start));
+        if (expected > 1e7)
+          sr.fail_at("rate", "spawns " + format_number(expected) + " people over its window, more than 10,000,000; set max_count or lower the rate");
+        g.max_count = static_cast<int>(expected);
+      }
+      parse_agent_fields(sr, g);
+      check_target(g.behaviour);
+      s.groups.push_back(std::move(g));
+    }
+  for (size_t i = 0; i < s.groups.size(); ++i)
+    for (size_t k = 0; k < i; ++k)
+      if (s.groups[i].id == s.groups[k].id) throw Error(s.groups[i].path + ".id: duplicate group/source id \"" + s.groups[i].id + "\"");
+
+  if (auto forces = r.get("forces"))
+    for (size_t i = 0; i < forces->size(); ++i) {
+      auto fr = forces->item(i);
+      fr.require_object();
+      ForceDef f;
+      std::string type = fr.one_of("type", {"uniform", "radial", "vortex"}, std::nullopt);
+      if (type == "uniform") {
+        fr.allow_only({"type", "acceleration", "groups"});
+        f.kind = ForceDef::Kind::Uniform;
+        f.acceleration = fr.vec2("acceleration", std::nullopt);
+        if (f.acceleration.norm() > 50) fr.fail_at("acceleration", "is above 50 m/s^2; check the units (m/s^2)");
+      } else {
+        fr.allow_only({"type", "center", "strength", "range", "groups"});
+        f.kind = type == "radial" ? ForceDef::Kind::Radial : ForceDef::Kind::Vortex;
+        f.center = fr.vec2("center", std::nullopt);
+        f.strength = fr.in_range("strength", -50, 50, std::nullopt);
+        f.range = fr.positive("range", 1e300);
+      }
+      if (auto gl = fr.get("groups"))
+        for (size_t k = 0; k < gl->size(); ++k) {
+          std::string id = gl->item(k).as_string();
+          int found = -1;
+          for (size_t q = 0; q < s.groups.size(); ++q)
+            if (s.groups[q].id == id) found = static_cast<int>(q);
+          if (found < 0) gl->item(k).fail("no group or source with id \"" + id + "\"");
+          f.groups.push_back(found);
+        }
+      s.forces.push_back(f);
+    }
+
+  if (auto areas = r.get("measurement_areas"))
+    for (size_t i = 0; i < areas->size(); ++i) {
+      auto ar = areas->item(i);
+      ar.require_object();
+      MeasurementArea a;
+      a.id = ar.string("id", "area" + std::to_string(i));
+      a.shape = parse_region(ar, {"id", "from", "to"});
+      a.from = ar.non_negative("from", 0.0);
+      a.to = ar.number("to", 1e300);
+      if (!(a.to > a.from)) ar.fail_at("to", "must be greater than from");
+      for (const auto& o : s.areas)
+        if (o.id == a.id) ar.fail_at("id", "duplicate measurement area id \"" + a.id + "\"");
+      s.areas.push_back(a);
+    }
+
+  if (auto o = r.get("outputs")) {
+    o->require_object();
+    o->allow_only({"trajectories", "fields", "pictures", "video", "metrics", "pixels_per_metre", "pressure_max", "density_max"});
+    s.outputs.trajectories = o->boolean("trajectories", true);
+    s.outputs.fields = o->boolean("fields", true);
+    s.outputs.pictures = o->boolean("pictures", true);
+    s.outputs.video = o->boolean("video", true);
+    s.outputs.metrics = o->boolean("metrics", true);
+    s.outputs.pixels_per_metre = o->in_range("pixels_per_metre", 0, 500, 0.0);
+    s.outputs.pressure_max = o->non_negative("pressure_max", 0.0);
+    s.outputs.density_max = o->positive("density_max", 8.0);
+  }
+  return s;
+}
+
+ScenarioDef ScenarioDef::parse_text(const std::string& text, const std::string& base_dir) {
+  return parse(parse_json_text(text, "<scenario>"), "<scenario>", base_dir);
+}
+
+ScenarioDef ScenarioDef::load(const std::string& path) {
+  json j = load_json_file(path);
+  try {
+    return parse(j, path, dir_of(path));
+  } catch (const Error& e) {
+    throw Error(path + ": " + e.what());
+  }
+}
+
+int ScenarioDef::steps_per_frame() const { return static_cast<int>(std::lround(1.0 / (output_rate * dt))); }
+
+}  // namespace crowdmpm

@@ -1,0 +1,474 @@
+#include "engine/sim/simulation.hpp"
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <unordered_map>
+
+namespace crowdmpm {
+
+uint64_t Rng::next() {
+  uint64_t z = (state_ += 0x9e3779b97f4a7c15ull);
+  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
+  z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
+  return z ^ (z >> 31);
+}
+
+double Rng::uniform() { return static_cast<double>(next() >> 11) * 0x1.0p-53; }
+
+static void check_time_step(const ScenarioDef& s, const Model& m, double dt) {
+  if (!(dt > 0 && dt <= 0.1)) throw Error(s.source + ": time.dt: must be in (0, 0.1] s, got " + format_number(dt));
+  if (dt * m.params.max_speed > 0.25 * s.cell_size)
+    throw Error(s.source + ": time.dt: " + format_number(dt) + " s is too large for domain.cell_size " +
+                format_number(s.cell_size) + " m: dt * max_speed (" + format_number(m.params.max_speed) +
+                " m/s) must be <= cell_size / 4");
+}
+
+void Simulation::set_time_step(double dt) {
+  check_time_step(scenario_, model_, dt);
+  time_at_dt_change_ = time();
+  steps_at_dt_change_ = steps_;
+  scenario_.dt = dt;
+}
+
+Simulation::Simulation(const ScenarioDef& scenario, const Model& model, int threads)
+    : scenario_(scenario), model_(model), pool_(threads), rng_(scenario.seed) {
+  const MaterialParams& P = model_.params;
+  check_time_step(scenario_, model_, scenario_.dt);
+  grid_.init(scenario_.geo, scenario_.cell_size);
+  try {
+    build_behaviours();
+  } catch (const Error& e) {
+    throw Error(scenario_.source + ": " + e.what());
+  }
+  // A pair interacts up to r_p + r_q + c_p: the cell lists must cover the largest such reach.
+  double max_r = P.body_radius, max_c = P.comfort_distance;
+  for (const auto& g : scenario_.groups) {
+    max_r = std::max(max_r, g.body_radius.value_or(P.body_radius));
+    max_c = std::max(max_c, g.comfort_distance.value_or(P.comfort_distance));
+  }
+  double min_c = P.comfort_distance;
+  for (const auto& g : scenario_.groups) min_c = std::min(min_c, g.comfort_distance.value_or(P.comfort_distance));
+  if (model_.has_traction() && P.contact_epsilon >= min_c)
+    throw Error(scenario_.source + ": model contact_epsilon " + format_number(P.contact_epsilon) +
+                " m must be smaller than every comfort distance (smallest: " + format_number(min_c) + " m)");
+  max_radius_ = max_r;
+  max_comfort_ = max_c;
+  init_neighbours(2 * max_r + interaction_margin(model_, max_c));
+  for (const auto& f : scenario_.forces) {
+    BodyForce b;
+    b.kind = f.kind == ForceDef::Kind::Uniform ? BodyForce::Kind::Uniform
+             : f.kind == ForceDef::Kind::Radial ? BodyForce::Kind::Radial : BodyForce::Kind::Vortex;
+    b.acceleration = f.acceleration;
+    b.center = f.center;
+    b.strength = f.strength;
+    b.range = f.range;
+    if (!f.groups.empty()) {
+      b.applies_to.assign(scenario_.groups.size(), 0);
+      for (int gi : f.groups) b.applies_to[gi] = 1;
+    }
+    forces_.push_back(b);
+  }
+  size_t capacity = 0;
+  source_accum_.assign(scenario_.groups.size(), 0);
+  source_spawned_.assign(scenario_.groups.size(), 0);
+  for (size_t gi = 0; gi < scenario_.groups.size(); ++gi)
+    if (scenario_.groups[gi].is_source) capacity += scenario_.groups[gi].max_count;
+  world_.reserve(capacity + 1024);
+  try {
+    for (size_t gi = 0; gi < scenario_.groups.size(); ++gi)
+      if (!scenario_.groups[gi].is_source) place_group(gi);
+  } catch (const Error& e) {
+    throw Error(scenario_.source + ": " + e.what());
+  }
+  spawn_sources();
+  prepare_derived();
+}
+
+int Simulation::nav_for(const std::string& target) {
+  for (size_t i = 0; i < nav_targets_.size(); ++i)
+    if (nav_targets_[i] == target) return static_cast<int>(i);
+  std::vector<const Shape*> shapes;
+  if (target == "nearest_exit") {
+    for (const auto& e : scenario_.geo.exits) shapes.push_back(&e.shape);
+  } else {
+    const NamedShape* t = scenario_.geo.find_target(target);
+    if (!t) throw Error("no exit or goal with id \"" + target + "\"");
+    shapes.push_back(&t->shape);
+  }
+  NavField field(scenario_.geo, shapes, scenario_.nav_cell, model_.params.wall_clearance);
+  if (!field.has_target())
+    throw Error("target \"" + target + "\" has no walkable cell in or next to it (it lies inside solids or outside the domain)");
+  navs_.push_back(std::move(field));
+  nav_targets_.push_back(target);
+  return static_cast<int>(navs_.size() - 1);
+}
+
+// A goal behaviour towards an exit, a goal region or "nearest_exit". Agents stop inside a goal
+// region; exits retire them instead.
+Behaviour Simulation::goal_behaviour(const std::string& target) {
+  Behaviour b;
+  b.kind = Behaviour::Kind::Goal;
+  b.nav = nav_for(target);
+  const NamedShape* t = target == "nearest_exit" ? nullptr : scenario_.geo.find_target(target);
+  bool is_exit = false;
+  for (const auto& e : scenario_.geo.exits) is_exit = is_exit || &e == t;
+  b.target = (t && !is_exit) ? &t->shape : nullptr;
+  return b;
+}
+
+// Behaviour 0 is "none"; group g (groups, then sources) has behaviour g + 1. Behaviours refer to
+// navigation fields by index, so adding fields later (behaviour_for_target) is safe.
+void Simulation::build_behaviours() {
+  behaviours_.push_back(Behaviour{});
+  for (const auto& g : scenario_.groups) {
+    Behaviour b;
+    const BehaviourDef& d = g.behaviour;
+    try {
+      switch (d.kind) {
+        case BehaviourDef::Kind::None: b.kind = Behaviour::Kind::None; break;
+        case BehaviourDef::Kind::Goal: b = goal_behaviour(d.target); break;
+        case BehaviourDef::Kind::Orbit:
+          b.kind = Behaviour::Kind::Orbit;
+          if (!d.target.empty()) b.nav = nav_for(d.target);
+          b.point = d.point;
+          b.sign = d.sign;
+          b.inward = d.inward;
+          break;
+        case BehaviourDef::Kind::Attract:
+          b.kind = Behaviour::Kind::Attract;
+          b.point = d.point;
+          b.arrive_radius = d.arrive_radius;
+          break;
+      }
+    } catch (const Error& e) {
+      throw Error(d.path + (d.kind == BehaviourDef::Kind::Orbit ? ".around: " : ".target: ") + e.what());
+    }
+    group_behaviour_.push_back(static_cast<int>(behaviours_.size()));
+    behaviours_.push_back(b);
+  }
+}
+
+int Simulation::behaviour_for_target(const std::string& target) {
+  if (!scenario_.geo.find_target(target) && target != "nearest_exit")
+    throw Error("no exit or goal with id \"" + target + "\"");
+  for (size_t i = 0; i < nav_targets_.size(); ++i)
+    if (nav_targets_[i] == target)
+      for (size_t b = 0; b < behaviours_.size(); ++b)
+        if (behaviours_[b].kind == Behaviour::Kind::Goal && behaviours_[b].nav == static_cast<int>(i))
+          return static_cast<int>(b);
+  behaviours_.push_back(goal_behaviour(target));
+  return static_cast<int>(behaviours_.size() - 1);
+}
+
+AgentDef Simulation::agent_template(const GroupDef& g, int gi) const {
+  AgentDef d;
+  d.velocity = g.velocity;
+  d.body_radius = g.body_radius.value_or(model_.params.body_radius);
+  d.comfort_distance = g.comfort_distance.value_or(model_.params.comfort_distance);
+  d.desired_speed = g.desired_speed;
+  d.behaviour = group_behaviour_[gi];
+  d.group = gi;
+  return d;
+}
+
+EntityId Simulation::add_agent(const AgentDef& def) {
+  if (def.behaviour < 0 || def.behaviour >= static_cast<int>(behaviours_.size()))
+    throw Error("agent behaviour index " + std::to_string(def.behaviour) + " out of range");
+  if (!def.position.allFinite() || !def.velocity.allFinite())
+    throw Error("agent position and velocity must be finite numbers");
+  if (scenario_.geo.sdf(def.position) < 0) throw Error("agent position is inside a wall, an obstacle or outside the domain");
+  if (!(def.body_radius >= 0.05 && def.body_radius <= 0.5)) throw Error("agent body_radius must be in [0.05, 0.5] m, got " + format_number(def.body_radius));
+  if (!(def.comfort_distance >= 0.01 && def.comfort_distance <= 2)) throw Error("agent comfort_distance must be in [0.01, 2] m, got " + format_number(def.comfort_distance));
+  if (!(def.desired_speed >= 0 && def.desired_speed <= 12)) throw Error("agent desired_speed must be in [0, 12] m/s, got " + format_number(def.desired_speed));
+  if (def.group < -1 || def.group >= static_cast<int>(scenario_.groups.size()))
+    throw Error("agent group " + std::to_string(def.group) + " out of range (-1 for none, or a group index)");
+  if (model_.has_traction() && def.comfort_distance <= model_.params.contact_epsilon)
+    throw Error("agent comfort_distance must be larger than the model's contact_epsilon (" +
+                format_number(model_.params.contact_epsilon) + " m)");
+  // Keep the cell lists wide enough for the new agent's reach (r + r_max + c).
+  double reach = 2 * std::max(def.body_radius, max_radius_) +
+                 interaction_margin(model_, std::max(def.comfort_distance, max_comfort_));
+  max_radius_ = std::max(max_radius_, def.body_radius);
+  max_comfort_ = std::max(max_comfort_, def.comfort_distance);
+  if (reach > neighbours_.range) init_neighbours(reach);
+  return world_.add(def);
+}
+
+// Hexagonal lattice at the density asked for, jittered without overlap, inside the region and
+// outside solids and other agents. Sparser than asked if it does not fit at first; an error if
+// even the densest packing of the bodies cannot hold the count.
+void Simulation::place_group(size_t gi) {
+  const GroupDef& g = scenario_.groups[gi];
+  AgentDef tmpl = agent_template(g, static_cast<int>(gi));
+  const double r = tmpl.body_radius, clearance = std::max(model_.params.wall_clearance, 0.0);
+  const Geometry& geo = scenario_.geo;
+  auto free_at = [&](const Vec2& p) { return g.region.contains(p) && geo.sdf(p) >= clearance; };
+  // Free area by sampling the part of the region inside the domain, at 5 cm or coarser so that
+  // at most ~4e6 samples are taken.
+  const Vec2 lo = g.region.lo.cwiseMax(geo.lo), hi = g.region.hi.cwiseMin(geo.hi);
+  long free_cells = 0;
+  double h = 0.05;
+  if (hi.x() > lo.x() && hi.y() > lo.y()) {
+    h = std::max(0.05, std::sqrt((hi.x() - lo.x()) * (hi.y() - lo.y()) / 4e6));
+    for (double y = lo.y() + h / 2; y < hi.y(); y += h)
+      for (double x = lo.x() + h / 2; x < hi.x(); x += h) free_cells += free_at(Vec2(x, y));
+  }
+  const double area = static_cast<double>(free_cells) * h * h;
+  if (g.count == 0) return;
+  if (area <= 0) throw Error(g.path + ".spawn: the region has no walkable area (it lies inside walls, obstacles or outside the domain)");
+  const long count = g.count >= 0 ? g.count : std::lround(g.density * area);
+  if (count == 0) return;
+  const double densest = 2 / (std::sqrt(3.0) * 4 * r * r);
+  const double want = static_cast<double>(count) / area;
+  if (want > densest)
+    throw Error(g.path + (g.count >= 0 ? ".count" : ".density") + ": " + format_number(want) +
+                " persons/m^2 on " + format_number(area) + " m^2 of walkable area cannot hold bodies of radius " +
+                format_number(r) + " m (hexagonal packing allows at most " + format_number(densest) + ")");
+  // Existing agents (earlier groups) in a coarse hash for overlap checks.
+  std::unordered_map<uint64_t, std::vector<Vec2>> occupied;
+  auto key = [](const Vec2& p) {
+    // 1 m cells; offset so that coordinates down to -2^30 m stay non-negative before packing.
+    auto cell = [](double c) { return static_cast<uint64_t>(static_cast<int64_t>(std::floor(c)) + (int64_t{1} << 30)); };
+    return (cell(p.x()) << 32) ^ cell(p.y());
+  };
+  for (size_t p = 0; p < world_.size(); ++p) occupied[key(world_.x[p])].push_back(world_.x[p]);
+  auto overlaps = [&](const Vec2& p, double rr) {
+    for (int dy = -1; dy <= 1; ++dy)
+      for (int dx = -1; dx <= 1; ++dx) {
+        auto it = occupied.find(key(p + Vec2(dx, dy)));
+        if (it == occupied.end()) continue;
+        for (const auto& q : it->second)
+          if ((q - p).norm() < rr) return true;
+      }
+    return false;
+  };
+  double a = std::sqrt(2 / (std::sqrt(3.0) * want));
+  for (int attempt = 0; attempt < 200; ++attempt, a *= 0.98) {
+    if (a < 2 * r) break;
+    std::vector<Vec2> pts;
+    const double row = a * std::sqrt(3.0) / 2;
+    // Draws in separate statements: the order of evaluation of function arguments is
+    // unspecified (GCC and Clang differ), and the stream must be consumed in one order.
+    const double off_x = rng_.uniform() * a;
+    const double off_y = rng_.uniform() * row;
+    const Vec2 off(off_x, off_y);
+    int k = 0;
+    for (double y = lo.y() + off.y() - row; y <= hi.y(); y += row, ++k)
+      for (double x = lo.x() + off.x() - a + (k % 2) * a / 2; x <= hi.x(); x += a) {
+        Vec2 p(x, y);
+        if (free_at(p) && !overlaps(p, 2 * r)) pts.push_back(p);
+      }
+    if (static_cast<long>(pts.size()) < count) continue;
+    // Choose count of them at random (Fisher-Yates on our own generator), keep lattice order.
+    std::vector<size_t> idx(pts.size());
+    for (size_t i = 0; i < idx.size(); ++i) idx[i] = i;
+    for (size_t i = idx.size() - 1; i > 0; --i) std::swap(idx[i], idx[static_cast<size_t>(rng_.uniform() * static_cast<double>(i + 1))]);
+    idx.resize(static_cast<size_t>(count));
+    std::sort(idx.begin(), idx.end());
+    const double jitter = 0.45 * (a - 2 * r);
+    for (size_t i : idx) {
+      AgentDef d = tmpl;
+      d.position = pts[i];
+      double ang = 2 * M_PI * rng_.uniform(), rad = jitter * std::sqrt(rng_.uniform());
+      Vec2 q = pts[i] + rad * Vec2(std::cos(ang), std::sin(ang));
+      if (free_at(q) && !overlaps(q, 2 * r)) d.position = q;
+      world_.add(d);
+      ++spawned_;
+      occupied[key(d.position)].push_back(d.position);
+    }
+    return;
+  }
+  throw Error(g.path + ".spawn: cannot place " + std::to_string(count) + " agents of radius " + format_number(r) +
+              " m without overlap in the walkable part of the region (" + format_number(area) + " m^2)");
+}
+
+long Simulation::pending_spawns() const {
+  long n = 0;
+  for (size_t gi = 0; gi < scenario_.groups.size(); ++gi) {
+    const auto& g = scenario_.groups[gi];
+    if (g.is_source && time() < std::min(g.end, scenario_.duration)) n += g.max_count - source_spawned_[gi];
+  }
+  return n;
+}
+
+void Simulation::spawn_sources() {
+  const double t = time();
+  for (size_t gi = 0; gi < scenario_.groups.size(); ++gi) {
+    const GroupDef& g = scenario_.groups[gi];
+    if (!g.is_source || t < g.start || t >= g.end) continue;
+    source_accum_[gi] += g.rate * scenario_.dt;
+    AgentDef tmpl = agent_template(g, static_cast<int>(gi));
+    while (source_accum_[gi] >= 1 && source_spawned_[gi] < g.max_count) {
+      bool placed = false;
+      for (int tries = 0; tries < 30 && !placed; ++tries) {
+        const double ux = rng_.uniform();  // separate statements: see place_group
+        const double uy = rng_.uniform();
+        Vec2 p(g.region.lo.x() + ux * (g.region.hi.x() - g.region.lo.x()), g.region.lo.y() + uy * (g.region.hi.y() - g.region.lo.y()));
+        if (!g.region.contains(p) || scenario_.geo.sdf(p) < model_.params.wall_clearance) continue;
+        bool clear = true;
+        for (size_t q = 0; q < world_.size() && clear; ++q)
+          clear = (world_.x[q] - p).norm() >= world_.radius[q] + tmpl.body_radius;
+        if (!clear) continue;
+        AgentDef d = tmpl;
+        d.position = p;
+        world_.add(d);
+        placed = true;
+      }
+      if (!placed) break;  // region full: try again next step
+      source_accum_[gi] -= 1;
+      ++source_spawned_[gi];
+      ++spawned_;
+    }
+  }
+}
+
+void Simulation::init_neighbours(double reach) {
+  // The social force keeps a step's neighbour lists through its substeps: pairs may close by
+  // up to 2 max_speed dt meanwhile, so the lists reach that much further.
+  if (!model_.is_continuum()) reach += 2 * model_.params.max_speed * scenario_.dt;
+  // Bound the number of cells (huge venues): larger cells cost time, not correctness.
+  const Vec2 ext = scenario_.geo.hi - scenario_.geo.lo;
+  neighbours_.init(scenario_.geo, reach, std::sqrt(ext.x() * ext.y() / 2e7));
+}
+
+void Simulation::prepare_derived() {
+  StepInputs in{model_, scenario_.geo, navs_, behaviours_, forces_, scenario_.dt};
+  kernel_drive(in, world_, pool_);
+  neighbours_.build(world_, pool_);
+  if (!model_.is_continuum()) {
+    kernel_social_force(in, neighbours_, world_, pool_);
+    return;
+  }
+  kernel_traction(in, neighbours_, world_, pool_);
+  kernel_p2g(in, world_, grid_, pool_);  // reported pressure of the initial state
+}
+
+const char* const StepProfile::kNames[StepProfile::kParts] = {"drive", "neighbours", "traction", "p2g", "grid_update",
+                                                               "g2p", "project", "exits", "sources"};
+
+void Simulation::step() {
+  if (failed_)
+    throw Error("the simulation became unstable at t = " + format_number(time()) + " s and cannot be stepped further");
+  StepInputs in{model_, scenario_.geo, navs_, behaviours_, forces_, scenario_.dt};
+  using clock = std::chrono::steady_clock;
+  auto t = profiling_ ? clock::now() : clock::time_point();
+  int part = 0;
+  auto mark = [&]() {
+    if (!profiling_) return;
+    auto now = clock::now();
+    profile_.seconds[part++] += std::chrono::duration<double>(now - t).count();
+    t = now;
+  };
+  if (model_.is_continuum()) {
+    kernel_drive(in, world_, pool_);
+    mark();
+    neighbours_.build(world_, pool_);
+    mark();
+    kernel_traction(in, neighbours_, world_, pool_);
+    mark();
+    kernel_p2g(in, world_, grid_, pool_);
+    mark();
+    kernel_grid_update(in, grid_, pool_);
+    mark();
+    kernel_g2p(in, grid_, world_, pool_);
+    mark();
+  } else {
+    step_social_force(in);
+    mark();    // profiled as drive; the neighbour, traction and grid parts stay empty
+    part = 6;
+  }
+  kernel_project(in, world_, pool_);
+  mark();
+  ++steps_;
+  check_finite();
+  retire_at_exits();
+  mark();
+  spawn_sources();
+  mark();
+  if (profiling_) ++profile_.steps;
+}
+
+void Simulation::step_social_force(const StepInputs& in) {
+  // Contacts are stiff (k, kappa): semi-implicit Euler in substeps of at most 2.5 ms, with the
+  // neighbour lists of the step start (init_neighbours widened them by 2 max_speed dt, the
+  // most two people can close in one step).
+  const MaterialParams& P = model_.params;
+  const int sub = std::max(1, static_cast<int>(std::ceil(scenario_.dt / 0.0025 - 1e-9)));
+  const double h = scenario_.dt / sub;
+  neighbours_.build(world_, pool_);
+  for (int k = 0; k < sub; ++k) {
+    kernel_drive(in, world_, pool_);
+    kernel_social_force(in, neighbours_, world_, pool_);
+    World& w = world_;
+    pool_.parallel_for(w.size(), [&](size_t b, size_t e) {
+      for (size_t p = b; p < e; ++p) {
+        Vec2 v = w.v[p] + h * (w.accel[p] + w.pair_force[p]);
+        const double speed = v.norm();
+        if (speed > P.max_speed) v *= P.max_speed / speed;
+        w.v[p] = v;
+        w.x[p] += h * v;
+      }
+    });
+  }
+}
+
+PairStats Simulation::pair_stats() {
+  PairStats st;
+  neighbours_.build(world_, pool_);  // the lists of the last step may name retired agents
+  const NeighbourGrid& nb = neighbours_;
+  const World& w = world_;
+  for (size_t p = 0; p < w.size(); ++p) {
+    nb.for_each_candidate(p, [&](size_t q) {
+      ++st.candidates;
+      if ((w.x[q] - w.x[p]).norm() < w.radius[p] + w.radius[q] + w.comfort[p]) ++st.pairs;
+    });
+  }
+  return st;
+}
+
+void Simulation::run_steps(long n) {
+  for (long i = 0; i < n; ++i) step();
+}
+
+bool Simulation::finished() const {
+  if (time() >= scenario_.duration - 1e-9) return true;
+  return scenario_.stop_when_empty && world_.size() == 0 && pending_spawns() == 0 && steps_ > 0;
+}
+
+void Simulation::check_finite() {
+  // In parallel: find the first agent (lowest index) with a non-finite state, if any.
+  std::vector<size_t>& first = first_bad_;
+  first.assign(static_cast<size_t>(pool_.threads()) + 1, world_.size());
+  std::atomic<int> chunk{0};
+  pool_.parallel_for(world_.size(), [&](size_t b, size_t e) {
+    size_t bad = world_.size();
+    for (size_t p = b; p < e && bad == world_.size(); ++p)
+      if (!world_.x[p].allFinite() || !world_.v[p].allFinite()) bad = p;
+    first[static_cast<size_t>(chunk++)] = bad;
+  });
+  size_t p = *std::min_element(first.begin(), first.end());
+  if (p < world_.size()) {
+    failed_ = true;
+    throw Error("simulation became unstable at t = " + format_number(time()) + " s: agent " +
+                std::to_string(world_.id[p]) + " has a non-finite position or velocity (reduce time.dt or the material stiffness E)");
+  }
+}
+
+void Simulation::retire_at_exits() {
+  if (scenario_.geo.exits.empty()) return;
+  // Which exit each agent stands in (in parallel), then removal from the back (serial, so the
+  // order of swaps, and thus of the arrays, is the same for any thread count).
+  exit_of_.resize(world_.size());
+  pool_.parallel_for(world_.size(), [&](size_t b, size_t e) {
+    for (size_t p = b; p < e; ++p) exit_of_[p] = scenario_.geo.exit_at(world_.x[p]);
+  });
+  for (size_t p = world_.size(); p-- > 0;) {
+    if (exit_of_[p] < 0) continue;
+    exit_events_.push_back({world_.id[p], exit_of_[p], time()});
+    world_.remove_at(p);
+  }
+}
+
+}  // namespace crowdmpm

@@ -1,0 +1,133 @@
+#pragma once
+// A running scenario: the world, its grid, navigation fields and behaviours, and one step of
+// the crowd material (drive, traction, P2G, grid update, G2P, projection, exits, sources).
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "engine/sim/kernels.hpp"
+#include "engine/sim/scenario.hpp"
+
+namespace crowdmpm {
+
+// Wall-clock seconds spent in each part of the step, accumulated while profiling is on.
+struct StepProfile {
+  static constexpr int kParts = 9;
+  static const char* const kNames[kParts];  // drive, neighbours, traction, p2g, grid, g2p, project, exits, sources
+  double seconds[kParts] = {0};
+  long steps = 0;
+};
+
+// Neighbour statistics of the current state, for cost models.
+struct PairStats {
+  long candidates = 0;  // particle pairs examined in the cell lists
+  long pairs = 0;       // of which within the interaction reach (pair traction evaluated)
+};
+
+struct ExitEvent {
+  EntityId id;
+  int exit;    // index into geometry.exits
+  double time; // s
+};
+
+// Deterministic random numbers (SplitMix64): the same seed gives the same stream everywhere.
+class Rng {
+ public:
+  explicit Rng(uint64_t seed) : state_(seed) {}
+  uint64_t next();
+  double uniform();  // [0, 1)
+ private:
+  uint64_t state_;
+};
+
+class Simulation {
+ public:
+  // model: the material to use (the scenario's own model is ignored when it is given).
+  Simulation(const ScenarioDef& scenario, const Model& model, int threads = 1);
+
+  void step();  // advance by dt
+  // Changes dt; checks (0, 0.1] and dt * max_speed <= cell_size / 4. Throws Error otherwise.
+  void set_time_step(double dt);
+  void run_steps(long n);
+  bool finished() const;
+
+  // Simulated time: steps since the last change of dt times dt, plus the time reached then
+  // (so that changing dt never rewrites the past, and without a change time = steps * dt exactly).
+  double time() const { return time_at_dt_change_ + static_cast<double>(steps_ - steps_at_dt_change_) * scenario_.dt; }
+  long steps() const { return steps_; }
+  // The step counter and clock, to put back after running steps again (gradient checkpoints).
+  struct Clock {
+    long steps, steps_at_dt_change;
+    double time_at_dt_change;
+  };
+  Clock clock() const { return Clock{steps_, steps_at_dt_change_, time_at_dt_change_}; }
+  void set_clock(const Clock& c) {
+    steps_ = c.steps;
+    steps_at_dt_change_ = c.steps_at_dt_change;
+    time_at_dt_change_ = c.time_at_dt_change;
+  }
+  const ScenarioDef& scenario() const { return scenario_; }
+  const Model& model() const { return model_; }
+  Model& mutable_model() { return model_; }
+  World& world() { return world_; }
+  const World& world() const { return world_; }
+  const Grid& grid() const { return grid_; }
+  const std::vector<ExitEvent>& exit_events() const { return exit_events_; }
+  long spawned() const { return spawned_; }
+  long pending_spawns() const;  // sources still to spawn (within their windows)
+  int threads() const { return pool_.threads(); }
+  void set_profiling(bool on) { profiling_ = on; }
+  const StepProfile& profile() const { return profile_; }
+  PairStats pair_stats();
+
+  // Add one agent (C API, tests); returns its id. Behaviour: index into behaviours().
+  EntityId add_agent(const AgentDef& def);
+  // Whether an agent may stand at p: inside the domain and outside every solid.
+  bool geo_ok(const Vec2& p) const { return scenario_.geo.sdf(p) >= 0; }
+  const std::vector<Behaviour>& behaviours() const { return behaviours_; }
+  // The inputs the kernels see (for the adjoint passes); valid while the simulation lives.
+  StepInputs step_inputs() const { return StepInputs{model_, scenario_.geo, navs_, behaviours_, forces_, scenario_.dt}; }
+  const NeighbourGrid& neighbour_grid() const { return neighbours_; }
+  int behaviour_for_target(const std::string& target);  // goal behaviour to an exit/goal id
+
+ private:
+  void build_behaviours();
+  Behaviour goal_behaviour(const std::string& target);
+  int nav_for(const std::string& target);
+  void place_group(size_t gi);
+  void spawn_sources();
+  void retire_at_exits();
+  void check_finite();
+  void prepare_derived();  // drive, traction and P2G on the current state, so pressure is defined
+  void step_social_force(const StepInputs& in);  // the social_force model's motion (no grid)
+  void init_neighbours(double reach);
+  AgentDef agent_template(const GroupDef& g, int group_index) const;
+
+  ScenarioDef scenario_;
+  Model model_;
+  ThreadPool pool_;
+  World world_;
+  Grid grid_;
+  NeighbourGrid neighbours_;
+  std::vector<NavField> navs_;
+  std::vector<std::string> nav_targets_;
+  std::vector<Behaviour> behaviours_;
+  std::vector<int> group_behaviour_;
+  std::vector<BodyForce> forces_;
+  std::vector<ExitEvent> exit_events_;
+  std::vector<double> source_accum_;
+  std::vector<long> source_spawned_;
+  Rng rng_;
+  long steps_ = 0;
+  long steps_at_dt_change_ = 0;
+  double time_at_dt_change_ = 0;
+  bool failed_ = false;  // the state became non-finite: no further steps
+  long spawned_ = 0;
+  double max_radius_ = 0, max_comfort_ = 0;  // over agents added so far (for the cell lists)
+  std::vector<int> exit_of_;        // scratch of retire_at_exits
+  std::vector<size_t> first_bad_;   // scratch of check_finite
+  bool profiling_ = false;
+  StepProfile profile_;
+};
+
+}  // namespace crowdmpm

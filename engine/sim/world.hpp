@@ -1,0 +1,58 @@
+#pragma once
+// ECS-style state: flat arrays (structure of arrays) of particle and agent components, dense
+// indices 0..size()-1 and stable entity ids (never reused). Removing an agent moves the last
+// one into its slot; ids keep pointing at the right agent through index_of().
+#include <cstdint>
+#include <vector>
+
+#include "engine/core/vec.hpp"
+
+namespace crowdmpm {
+
+using EntityId = uint64_t;  // 0 is never a valid id
+
+struct AgentDef {
+  Vec2 position = Vec2::Zero();  // m
+  Vec2 velocity = Vec2::Zero();  // m/s
+  double body_radius = 0.2;      // m
+  double comfort_distance = 0.3; // m
+  double desired_speed = 1.3;    // m/s
+  int behaviour = 0;             // index into the simulation's behaviour table
+  int group = 0;                 // index into the scenario's groups and sources
+};
+
+class World {
+ public:
+  // Particle components.
+  std::vector<Vec2> x, v;        // position (m), velocity (m/s)
+  std::vector<Mat2> C;           // APIC affine velocity (1/s)
+  std::vector<Mat2> F;           // deformation gradient (elastic material only; identity otherwise)
+  std::vector<double> J;         // volume ratio
+  // Agent components.
+  std::vector<EntityId> id;
+  std::vector<double> radius, comfort, v0;
+  std::vector<int> behaviour, group;
+  // Per-step derived quantities (written by the kernels, read by outputs and the next kernels).
+  std::vector<Vec2> accel;       // active drive + body forces, m/s^2
+  std::vector<Vec2> heading;     // unit desired direction (or motion direction)
+  std::vector<Vec2> pair_force;  // pair traction on the particle
+  std::vector<double> pair_virial;  // sum over neighbours of f_pq . (x_p - x_q)
+  std::vector<double> pressure;  // reported pressure (continuum + pair virial), written by P2G
+
+  size_t size() const { return id.size(); }
+  void reserve(size_t n);
+  EntityId add(const AgentDef& def);
+  void remove_at(size_t index);
+  // Dense index of an entity, or -1 if it does not exist (never did, or was removed).
+  long index_of(EntityId e) const;
+  EntityId next_id() const { return next_id_; }
+
+  // FNV-1a over id, x and v (raw bytes) of every live particle in id order.
+  uint64_t state_hash() const;
+
+ private:
+  std::vector<long> slot_;  // id -> index, -1 once removed
+  EntityId next_id_ = 1;
+};
+
+}  // namespace crowdmpm
