@@ -125,7 +125,7 @@ int main(int argc, char** argv) {
                 "forward_with_storage_and_backward_s=%.3f,backward_over_forward=%.2f,stored_bytes_per_agent_step=%zu,"
                 "peak_stored_steps=%zu,dE=%.4g\n",
                 agents, steps, threads, checkpoint, forward, both, (both - forward) / forward, wg.stored_bytes_per_agent_step(),
-                wg.peak_stored_steps(), g.E);
+                wg.peak_stored_steps(), g.params.E);
     return 0;
   }
   sim.set_profiling(profile);

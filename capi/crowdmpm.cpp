@@ -104,7 +104,7 @@ int behaviour_for(Simulation& sim, const char* target, int32_t group) {
   if (group < 0 || group >= static_cast<int32_t>(groups.size()))
     fail(CMPM_ERROR_INVALID_ARGUMENT, "agent group " + std::to_string(group) + " out of range (the scenario has " +
                                           std::to_string(groups.size()) + " groups and sources); or give a target");
-  return group + 1;  // behaviour 0 is "none"; group g's behaviour is g + 1
+  return sim.behaviour_of_group(group);
 }
 
 // The request of a job and the file it writes: both given, the path not empty.
@@ -381,14 +381,9 @@ cmpm_Status cmpm_World_SetParameter(cmpm_WorldId world, const char* name, double
   return guard("cmpm_World_SetParameter", CMPM_ERROR_INVALID_ARGUMENT, [&] {
     Simulation& sim = lookup(world);
     require(name, "name");
-    if (std::strcmp(name, "body_radius") == 0 || std::strcmp(name, "comfort_distance") == 0 ||
-        std::strcmp(name, "rest_density") == 0 || std::strcmp(name, "mass") == 0)
-      fail(CMPM_ERROR_INVALID_ARGUMENT, std::string(name) + " is fixed once a world exists (it sizes agents and the grid)");
     Model m = sim.model();
     m.set(name, value);
-    if (sim.scenario().dt * m.params.max_speed > 0.25 * sim.scenario().cell_size)
-      fail(CMPM_ERROR_INVALID_ARGUMENT, "max_speed " + format_number(value) + " m/s is too large for dt and the cell size");
-    sim.mutable_model() = m;
+    sim.set_model(m);
   });
 }
 
@@ -399,7 +394,9 @@ cmpm_Status cmpm_World_LoadTraction(cmpm_WorldId world, const char* traction_jso
     if (!sim.model().has_traction())
       fail(CMPM_ERROR_INVALID_ARGUMENT, std::string("the ") + material_name(sim.model().material) + " material has no traction network");
     json j = parse_json_text(traction_json, "<traction>");
-    sim.mutable_model().traction = TractionNet::parse(JsonReader(j, "traction"));
+    Model m = sim.model();
+    m.traction = TractionNet::parse(JsonReader(j, "traction"));
+    sim.set_model(m);
   });
 }
 

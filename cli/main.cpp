@@ -110,7 +110,9 @@ const char* kTrainHelp =
     "  --params LIST      comma-separated scalars to learn (default: all the kind has; crowd:\n"
     "                     E,gamma,tension_scale,tau,v0_scale,comfort_distance,alignment_time;\n"
     "                     fluid: the same without tension_scale; social_force:\n"
-    "                     tau,v0_scale,sf_A,sf_B,sf_k,sf_kappa)\n"
+    "                     tau,v0_scale,sf_A,sf_B,sf_k,sf_kappa); 'none': only the network and\n"
+    "                     the scenario's force terms marked \"learn\" (fitted terms are written\n"
+    "                     back as MODEL_STEM.SCENARIO_STEM.json beside the model)\n"
     "  --no-network       keep the traction network fixed\n"
     "  --loss trajectory|grid_velocity\n"
     "                     mean squared distance to the recorded positions (default), or the\n"
@@ -153,25 +155,28 @@ struct Args {
   bool quiet = false, help = false;
   std::string desired_speed = "observed";
   std::string material;  // train: start from the default parameters of this model kind
-  TrainOptions train;
+  json train = json::object();  // train: the "options" of a training request (parse_train_job)
   bool stride_given = false;
 };
 
 [[noreturn]] void usage_error(const std::string& msg);
+
+// The numeric train options and their keys in a training request's "options".
+const char* train_option_key(const std::string& flag) {
+  static const std::pair<const char*, const char*> keys[] = {
+      {"--window", "window"},       {"--iterations", "iterations"}, {"--batch", "batch"},
+      {"--lr", "learning_rate"},    {"--clip", "clip"},             {"--validation", "validation"},
+      {"--eval-every", "eval_every"}, {"--patience", "patience"},   {"--seed", "seed"}};
+  for (const auto& [f, k] : keys)
+    if (flag == f) return k;
+  return nullptr;
+}
 
 double parse_double(const std::string& name, const std::string& v, double lo, double hi, const char* what) {
   char* end = nullptr;
   double d = std::strtod(v.c_str(), &end);
   if (v.empty() || *end || !(d >= lo && d <= hi)) usage_error(name + " must be " + what + ", got '" + v + "'");
   return d;
-}
-
-long parse_long(const std::string& name, const std::string& v, long lo, long hi) {
-  char* end = nullptr;
-  long n = std::strtol(v.c_str(), &end, 10);
-  if (v.empty() || *end || n < lo || n > hi)
-    usage_error(name + " must be a whole number in [" + std::to_string(lo) + ", " + std::to_string(hi) + "], got '" + v + "'");
-  return n;
 }
 
 [[noreturn]] void usage_error(const std::string& msg) {
@@ -201,9 +206,9 @@ Args parse_args(int argc, char** argv, int first) {
       a.datasets.back().second.push_back(value("--trajectories"));
       while (i + 1 < argc && argv[i + 1][0] != '-') a.datasets.back().second.push_back(argv[++i]);
       if (a.trajectories.empty()) a.trajectories = a.datasets.back().second.front();
-    } else if (s == "--observe" || s == "--horizon" || s == "--stride" || s == "--window") {
+    } else if (s == "--observe" || s == "--horizon" || s == "--stride") {
       double d = parse_double(s, value(s.c_str()), 1e-3, 1e5, "a number of seconds > 0");
-      (s == "--observe" ? a.observe : s == "--horizon" ? a.horizon : s == "--window" ? a.train.window : a.stride) = d;
+      (s == "--observe" ? a.observe : s == "--horizon" ? a.horizon : a.stride) = d;
       if (s == "--stride") a.stride_given = true;
     } else if (s == "--desired-speed") {
       a.desired_speed = value("--desired-speed");
@@ -211,30 +216,31 @@ Args parse_args(int argc, char** argv, int first) {
         usage_error("--desired-speed must be 'observed' or 'scenario', got '" + a.desired_speed + "'");
     } else if (s == "--params") {
       std::string v = value("--params");
-      a.train.params.clear();
+      json list = json::array();
       size_t b = 0;
       while (b <= v.size()) {
         size_t e = v.find(',', b);
         if (e == std::string::npos) e = v.size();
-        if (e > b) a.train.params.push_back(v.substr(b, e - b));
+        if (e > b) list.push_back(v.substr(b, e - b));
         b = e + 1;
       }
-      if (a.train.params.empty()) usage_error("--params needs at least one parameter name");
+      if (list.empty()) usage_error("--params needs at least one parameter name (or 'none')");
+      if (list.size() == 1 && list[0] == "none") list = json::array();  // only the network and force terms
+      a.train["params"] = list;
     } else if (s == "--loss") {
-      const std::string v = value("--loss");
-      if (v != "trajectory" && v != "grid_velocity") usage_error("--loss must be 'trajectory' or 'grid_velocity', got '" + v + "'");
-      a.train.loss = v == "trajectory" ? TrainOptions::Loss::Trajectory : TrainOptions::Loss::GridVelocity;
+      a.train["loss"] = value("--loss");
     } else if (s == "--material") {
       a.material = value("--material");
-    } else if (s == "--no-network") a.train.learn_network = false;
-    else if (s == "--iterations") a.train.iterations = static_cast<int>(parse_long(s, value(s.c_str()), 1, 1000000));
-    else if (s == "--batch") a.train.batch = static_cast<int>(parse_long(s, value(s.c_str()), 1, 10000));
-    else if (s == "--eval-every") a.train.eval_every = static_cast<int>(parse_long(s, value(s.c_str()), 1, 1000000));
-    else if (s == "--patience") a.train.patience = static_cast<int>(parse_long(s, value(s.c_str()), 1, 1000000));
-    else if (s == "--seed") a.train.seed = static_cast<uint64_t>(parse_long(s, value(s.c_str()), 0, 1L << 62));
-    else if (s == "--lr") a.train.learning_rate = parse_double(s, value(s.c_str()), 1e-9, 10, "a number in (0, 10]");
-    else if (s == "--clip") a.train.clip_norm = parse_double(s, value(s.c_str()), 0, 1e12, "a number >= 0");
-    else if (s == "--validation") a.train.validation_fraction = parse_double(s, value(s.c_str()), 0.01, 0.9, "a fraction in [0.01, 0.9]");
+    } else if (s == "--no-network") {
+      a.train["learn_network"] = false;
+    } else if (const char* key = train_option_key(s)) {
+      // Ranges are checked by parse_train_job, the same checks as a JSON training request's.
+      const std::string v = value(s.c_str());
+      char* end = nullptr;
+      const double d = std::strtod(v.c_str(), &end);
+      if (v.empty() || *end || !std::isfinite(d)) usage_error(s + " must be a number, got '" + v + "'");
+      a.train[key] = d;
+    }
     else if (s == "--windows") {
       std::string v = value("--windows");
       char* end = nullptr;
@@ -381,26 +387,24 @@ int cmd_train(const Args& a) {
     const std::filesystem::path dir = std::filesystem::absolute(a.out).parent_path();
     if (!std::filesystem::is_directory(dir)) throw Error("cannot write " + a.out + ": folder " + dir.string() + " does not exist");
   }
-  TrainJob job;
+  // The same request a program sends through the C ABI (cmpm_TrainModel), checked by the same
+  // parse_train_job.
+  json request = {{"datasets", json::array()}};
   for (const auto& [scen, trajs] : a.datasets) {
     if (scen.empty()) usage_error("--trajectories must follow the --scenario they were recorded in");
     if (trajs.empty()) usage_error("--scenario " + scen + " has no --trajectories after it");
-    TrainDataset d{ScenarioDef::load(scen), {}};
-    for (const auto& f : trajs) {
-      d.recordings.push_back(TrajectorySet::read(f));
-      job.files.push_back(f);
-    }
-    job.data.push_back(std::move(d));
+    request["datasets"].push_back({{"scenario", scen}, {"trajectories", trajs}});
   }
   if (!a.model.empty() && !a.material.empty()) usage_error("train takes --model or --material, not both");
-  job.start = !a.model.empty()    ? Model::load(a.model)
-              : !a.material.empty() ? Model::default_of(a.material)
-                                    : job.data[0].scenario.model_or_default();
-  TrainOptions& o = job.options;
-  o = a.train;
-  if (a.stride_given) o.stride = a.stride;
-  o.threads = a.threads;
-  o.desired_speed = desired_speed_of(a);
+  if (!a.model.empty()) request["model"] = a.model;
+  if (!a.material.empty()) request["material"] = a.material;
+  json options = a.train;
+  if (a.stride_given) options["stride"] = a.stride;
+  options["threads"] = a.threads;
+  options["desired_speed"] = a.desired_speed;
+  request["options"] = options;
+  const TrainJob job = parse_train_job(request);
+  const TrainOptions& o = job.options;
   const bool show = !a.quiet;
   if (show)
     std::printf("training %s material from %zu scenario(s); windows of %g s every %g s\n", material_name(job.start.material),
@@ -420,9 +424,19 @@ int cmd_train(const Args& a) {
   std::printf("validation %s loss %.5f -> %.5f %s (best at iteration %d of %d%s); %ld windows skipped; wrote %s\n",
               traj ? "trajectory" : "grid velocity", r.initial_validation, r.best_validation, traj ? "m2" : "(m/s)2",
               r.best_iteration, r.iterations, r.early_stopped ? ", stopped early" : "", r.skipped_windows, a.out.c_str());
-  const ParamMap learned(m, o.params, false);
+  std::vector<ScenarioDef> venues;
+  for (const auto& d : job.data) venues.push_back(d.scenario);
+  const Fitted start = Fitted::of(job.start, venues), fitted{m, r.terms};
+  const ParamMap learned(start, o.params, false, o.learn_scalars);
   for (const auto& name : learned.scalars())
     std::printf("  %-18s %.5g (start %.5g)\n", name.c_str(), m.get(name), job.start.get(name));
+  const std::vector<double> u0 = learned.get(start), u1 = learned.get(fitted);
+  const auto names = learned.term_parameter_names(start);
+  for (size_t k = 0; k < names.size(); ++k)
+    std::printf("  %-18s %.5g (start %.5g) in %s\n", names[k].second.c_str(), u1[learned.scalars().size() + k],
+                u0[learned.scalars().size() + k], venues[names[k].first].source.c_str());
+  // Venues whose force terms were fitted: written back as scenarios that simulate runs.
+  for (const std::string& f : write_fitted_scenarios(job, r, a.out)) std::printf("wrote %s\n", f.c_str());
   return 0;
 }
 

@@ -63,6 +63,19 @@ check "train grid velocity loss" 0 "$cli" train --scenario "$src/scenarios/bottl
   --trajectories "$work/sim/trajectories.txt" --window 1 --iterations 2 --loss grid_velocity --quiet --out "$work/gv.json"
 check "train social force" 0 "$cli" train --scenario "$src/scenarios/bottleneck.json" \
   --trajectories "$work/sim/trajectories.txt" --window 1 --iterations 1 --material social_force --quiet --out "$work/sf.json"
+# A venue force term marked "learn" is fitted alone (--params none --no-network) and written
+# back into a scenario that simulate runs.
+sed '$ s/}$/, "forces": [{"type": "drift", "acceleration": [0.2, 0], "learn": ["acceleration"]}]}/' \
+  "$src/scenarios/bottleneck.json" > "$work/bottleneck_drift.json"
+sed -i "s|\"model\": \"models/|\"model\": \"$src/scenarios/models/|" "$work/bottleneck_drift.json"
+check "train force term" 0 "$cli" train --scenario "$work/bottleneck_drift.json" --trajectories "$work/sim/trajectories.txt" \
+  --window 1 --iterations 3 --eval-every 1 --params none --no-network --out "$work/drift.json"
+contains "train force term reports the term" "forces[0].acceleration.x"
+contains "train force term writes the scenario" "drift.bottleneck_drift.json"
+check "simulate fitted scenario" 0 "$cli" simulate "$work/drift.bottleneck_drift.json" --out "$work/fitted" --duration 1 --quiet
+check "train nothing to learn" 1 "$cli" train --scenario "$src/scenarios/bottleneck.json" --trajectories "$work/sim/trajectories.txt" \
+  --params none --no-network --out "$work/none.json"
+contains "train nothing to learn" "nothing to learn"
 check "predict" 0 "$cli" predict --trajectories "$work/sim/trajectories.txt" --scenario "$src/scenarios/bottleneck.json" \
   --observe 2 --horizon 2 --model "$work/model.json" --model "$work/sf.json" --out "$work/pred"
 contains "predict table" "constant velocity"
@@ -75,7 +88,7 @@ check "train without --out" 2 "$cli" train --scenario "$src/scenarios/bottleneck
 check "train trajectories first" 2 "$cli" train --trajectories "$work/sim/trajectories.txt" --out "$work/m.json"
 check "train unknown parameter" 1 "$cli" train --scenario "$src/scenarios/bottleneck.json" \
   --trajectories "$work/sim/trajectories.txt" --params E,nonsense --out "$work/m.json"
-contains "train unknown parameter" "unknown model parameter 'nonsense'"
+contains "train unknown parameter" "unknown material parameter \"nonsense\""
 check "train window too long" 1 "$cli" train --scenario "$src/scenarios/bottleneck.json" \
   --trajectories "$work/sim/trajectories.txt" --window 100 --out "$work/m.json"
 check "train unwritable output" 1 "$cli" train --scenario "$src/scenarios/bottleneck.json" \

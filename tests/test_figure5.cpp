@@ -112,8 +112,8 @@ double lattice_pressure(const Model& m, double d) {
   }
   std::vector<NavField> navs;
   std::vector<Behaviour> behaviours(1);
-  std::vector<BodyForce> forces;
-  StepInputs in{m, geo, navs, behaviours, forces, 0.01};
+  std::vector<Term> terms;
+  StepInputs in{m, geo, navs, behaviours, terms, 0.01, 0};
   ThreadPool pool(1);
   NeighbourGrid nb;
   nb.init(geo, 1.0);  // reach >= 2 r + c

@@ -25,7 +25,7 @@ std::pair<double, double> sides(const std::string& name, const Model* model = nu
 }
 }  // namespace
 
-TEST_CASE("Figure 7: the Hateem side is denser than the opposite side; without the Hateem both sides are alike", "[figure7]") {
+TEST_CASE("Figure 7: the Hateem side is denser than the opposite side and without the Hateem both sides are alike", "[figure7]") {
   REQUIRE(ScenarioDef::load(test::scenario_path("hajj")).model_or_default().name == "learned_juelich");
   auto [north, south] = sides("hajj");
   auto [north0, south0] = sides("hajj_no_hateem");

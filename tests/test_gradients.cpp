@@ -11,6 +11,7 @@
 #include <memory>
 #include <string>
 #include "engine/learn/optim.hpp"
+#include "engine/learn/train.hpp"
 #include "engine/sim/traction.hpp"
 #include "support.hpp"
 
@@ -110,7 +111,7 @@ struct Cluster {
   Model model;
   std::vector<NavField> navs;
   std::vector<Behaviour> behaviours = std::vector<Behaviour>(1);
-  std::vector<BodyForce> forces;
+  std::vector<Term> forces;
   NeighbourGrid nb;
   ThreadPool pool{1};
   Cluster() {
@@ -131,7 +132,7 @@ struct Cluster {
     nb.init(geo, 1.0);
   }
   std::vector<Vec2> forces_now() {
-    StepInputs in{model, geo, navs, behaviours, forces, 0.01};
+    StepInputs in{model, geo, navs, behaviours, forces, 0.01, 0};
     nb.build(w, pool);
     kernel_traction(in, nb, w, pool);
     return w.pair_force;
@@ -154,7 +155,7 @@ TEST_CASE("pair traction adjoint matches central differences", "[gradients]") {
   loss();
   TractionAdjoint adj;
   adj.reset(n, c.model.traction.parameter_count());
-  StepInputs in{c.model, c.geo, c.navs, c.behaviours, c.forces, 0.01};
+  StepInputs in{c.model, c.geo, c.navs, c.behaviours, c.forces, 0.01, 0};
   kernel_traction_adjoint(in, c.nb, c.w, weights, adj);
   const double h = 1e-6;
   double worst = 0;
@@ -246,11 +247,11 @@ TEST_CASE("grid transfer adjoint (P2G, grid update, G2P) matches central differe
   }
   std::vector<NavField> navs;
   std::vector<Behaviour> behaviours(1);
-  std::vector<BodyForce> forces;
+  std::vector<Term> forces;
   ThreadPool pool(1);
   auto loss = [&](const World& start, const Model& mdl) {
     World w = start;
-    StepInputs in{mdl, geo, navs, behaviours, forces, 0.01};
+    StepInputs in{mdl, geo, navs, behaviours, forces, 0.01, 0};
     kernel_p2g(in, w, grid, pool);
     kernel_grid_update(in, grid, pool);
     kernel_g2p(in, grid, w, pool);
@@ -261,14 +262,14 @@ TEST_CASE("grid transfer adjoint (P2G, grid update, G2P) matches central differe
   long constrained = 0;
   {
     World w = base;
-    StepInputs in{model, geo, navs, behaviours, forces, 0.01};
+    StepInputs in{model, geo, navs, behaviours, forces, 0.01, 0};
     kernel_p2g(in, w, grid, pool);
     for (size_t k = 0; k < grid.nodes(); ++k) constrained += grid.solid[k] && grid.mass[k] > 0;
   }
   CHECK(constrained > 0);  // the boundary condition is exercised
   TransferAdjoint adj;
   adj.reset(n);
-  StepInputs in{model, geo, navs, behaviours, forces, 0.01};
+  StepInputs in{model, geo, navs, behaviours, forces, 0.01, 0};
   kernel_transfer_adjoint(in, grid, base, wx, wv, wC, wJ, adj);
   const double h = 1e-5;  // larger steps lose to curvature, smaller ones to round-off
   double worst = 0;
@@ -381,10 +382,9 @@ double window_gradient_error(int steps) {
   auto five_point = [&](auto&& loss_at) {
     return (-loss_at(2 * h) + 8 * loss_at(h) - 8 * loss_at(-h) + loss_at(-2 * h)) / (12 * h);
   };
-  for (auto [name, analytic] : {std::pair<const char*, double>{"E", g.E}, {"gamma", g.gamma}, {"tension_scale", g.tension_scale},
-                                {"tau", g.tau}, {"v0_scale", g.v0_scale}, {"comfort_distance", g.comfort_distance},
-                                {"alignment_time", g.alignment_time}}) {
-    compare(name, analytic, five_point([&](double dh) {
+  for (const std::string& name : learnable_params(model)) {
+    const double analytic = g.params.*param_info(name).field;
+    compare(name.c_str(), analytic, five_point([&](double dh) {
       Model m = model;
       m.set(name, model.get(name) + dh);
       auto sm = make_sim(m);  // agents take the model's comfort distance
@@ -446,9 +446,9 @@ TEST_CASE("two steps with pair traction compose by hand", "[gradients]") {
   const size_t n = base.size();
   std::vector<NavField> navs;
   std::vector<Behaviour> behaviours(1);
-  std::vector<BodyForce> forces;
+  std::vector<Term> forces;
   ThreadPool pool(1);
-  StepInputs in{model, geo, navs, behaviours, forces, 0.01};
+  StepInputs in{model, geo, navs, behaviours, forces, 0.01, 0};
   NeighbourGrid nbg;
   nbg.init(geo, 1.0);
   auto transfer = [&](World& w) {
@@ -547,14 +547,9 @@ TEST_CASE("checkpointed window gradient equals the stored one and leaves the sim
   CHECK(peak_all == static_cast<size_t>(steps));
   CHECK(peak_ck == 5 + 5);  // five checkpoints and one segment of five
   // The same arithmetic in the same order: identical results.
-  CHECK(a.E == b.E);
-  CHECK(a.gamma == b.gamma);
-  CHECK(a.tau == b.tau);
-  CHECK(a.v0_scale == b.v0_scale);
-  CHECK(a.comfort_distance == b.comfort_distance);
-  CHECK(a.alignment_time == b.alignment_time);
+  for (const auto& info : param_table()) CHECK(a.params.*info.field == b.params.*info.field);
   CHECK(a.network == b.network);
   CHECK(a.x0 == b.x0);
   CHECK(a.v0 == b.v0);
-  CHECK(a.E != 0);
+  CHECK(a.params.E != 0);
 }

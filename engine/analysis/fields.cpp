@@ -19,14 +19,11 @@ FieldFrame compute_fields(const World& w, const Grid& g, double min_density) {
   const double inv_area = 1.0 / (g.dx * g.dx);
   for (size_t p = 0; p < w.size(); ++p) {
     Stencil s = make_stencil(g.origin, g.dx, g.nx, g.ny, w.x[p]);
-    for (int b = 0; b < 3; ++b)
-      for (int a = 0; a < 3; ++a) {
-        size_t k = static_cast<size_t>(g.node(s.bx + a, s.by + b));
-        double weight = s.wx[a] * s.wy[b];
-        wsum[k] += weight;
-        f.velocity[k] += weight * w.v[p];
-        f.pressure[k] += weight * w.pressure[p];
-      }
+    for_each_stencil_node(s, g.nx, g.dx, [&](const StencilNode& nd) {
+      wsum[nd.k] += nd.w;
+      f.velocity[nd.k] += nd.w * w.v[p];
+      f.pressure[nd.k] += nd.w * w.pressure[p];
+    });
   }
   for (size_t k = 0; k < n; ++k) {
     f.density[k] = wsum[k] * inv_area;

@@ -11,4 +11,11 @@ class Error : public std::runtime_error {
   explicit Error(const std::string& what) : std::runtime_error(what) {}
 };
 
+// A simulation whose state became non-finite (too stiff a material for the time step, too strong
+// a drive): the one failure training may survive by leaving that window out.
+class UnstableError : public Error {
+ public:
+  explicit UnstableError(const std::string& what) : Error(what) {}
+};
+
 }  // namespace crowdmpm

@@ -118,21 +118,16 @@ void kernel_transfer_adjoint(const StepInputs& in, const Grid& shape, const Worl
   std::vector<double> mass(nodes, 0), stress_s(n);
   std::vector<Vec2> MO(nodes, Vec2::Zero()), MN(nodes, Vec2::Zero());
   std::vector<StencilGrad> st(n);
-  auto node_of = [&](const Stencil& s, int a, int b) { return static_cast<size_t>(shape.node(s.bx + a, s.by + b)); };
   for (size_t p = 0; p < n; ++p) {
     st[p] = stencil_grad(shape, w.x[p]);
     const double J = w.J[p];
     stress_s[p] = dt * vol0 * 4 * inv_dx2 * J * material_pressure(P, J);  // S_p = s_p I
-    for (int b = 0; b < 3; ++b)
-      for (int a = 0; a < 3; ++a) {
-        const size_t k = node_of(st[p].s, a, b);
-        const double W = st[p].s.wx[a] * st[p].s.wy[b];
-        const Vec2 dpos = dx * Vec2(a - st[p].s.fx, b - st[p].s.fy);
-        const Vec2 mo = W * (m * w.v[p] + m * w.C[p] * dpos);
-        mass[k] += W * m;
-        MO[k] += mo;
-        MN[k] += mo + W * stress_s[p] * dpos;
-      }
+    for_each_stencil_node(st[p].s, shape.nx, dx, [&](const StencilNode& nd) {
+      const Vec2 mo = nd.w * (m * w.v[p] + m * w.C[p] * nd.dpos);
+      mass[nd.k] += nd.w * m;
+      MO[nd.k] += mo;
+      MN[nd.k] += mo + nd.w * stress_s[p] * nd.dpos;
+    });
   }
   std::vector<NodeBC> bc_new(nodes), bc_old(nodes);
   std::vector<Vec2> vo(nodes, Vec2::Zero()), vn(nodes, Vec2::Zero());
@@ -154,15 +149,11 @@ void kernel_transfer_adjoint(const StepInputs& in, const Grid& shape, const Worl
     const Stencil& s = st[p].s;
     Vec2 v_pic = Vec2::Zero(), dv = Vec2::Zero();
     Mat2 Cn = Mat2::Zero();
-    for (int b = 0; b < 3; ++b)
-      for (int a = 0; a < 3; ++a) {
-        const size_t k = node_of(s, a, b);
-        const double W = s.wx[a] * s.wy[b];
-        const Vec2 dpos = dx * Vec2(a - s.fx, b - s.fy);
-        v_pic += W * vn[k];
-        dv += W * (vn[k] - vo[k]);
-        Cn += 4 * inv_dx2 * W * vn[k] * dpos.transpose();
-      }
+    for_each_stencil_node(s, shape.nx, dx, [&](const StencilNode& nd) {
+      v_pic += nd.w * vn[nd.k];
+      dv += nd.w * (vn[nd.k] - vo[nd.k]);
+      Cn += 4 * inv_dx2 * nd.w * vn[nd.k] * nd.dpos.transpose();
+    });
     const Vec2 v_new = (1 - alpha) * (w.v[p] + dv) + alpha * v_pic + dt * (w.accel[p] + w.pair_force[p] / m);
     const bool speed_clamped = v_new.norm() > P.max_speed;
     const double J_unclamped = w.J[p] * (1 + dt * Cn.trace());
@@ -187,18 +178,16 @@ void kernel_transfer_adjoint(const StepInputs& in, const Grid& shape, const Worl
     const Vec2 dv_bar = (1 - alpha) * vb, vpic_bar = alpha * vb;
     const double alpha_bar = vb.dot(v_pic - w.v[p] - dv);
     if (alpha_raw < 1) out.alignment_time += alpha_bar * (-dt / (P.alignment_time * P.alignment_time));
-    for (int b = 0; b < 3; ++b)
-      for (int a = 0; a < 3; ++a) {
-        const size_t k = node_of(s, a, b);
-        const double W = s.wx[a] * s.wy[b];
-        const Vec2 dpos = dx * Vec2(a - s.fx, b - s.fy);
-        vn_bar[k] += W * (vpic_bar + dv_bar) + 4 * inv_dx2 * W * Cb * dpos;
-        vo_bar[k] -= W * dv_bar;
-        // Position dependence of the weights and of dpos (d dpos / dx = -I).
-        const Vec2 dW(st[p].dwx[a] * s.wy[b], s.wx[a] * st[p].dwy[b]);
-        const double g = vn[k].dot(vpic_bar + dv_bar) - vo[k].dot(dv_bar) + 4 * inv_dx2 * vn[k].dot(Cb * dpos);
-        out.x[p] += g * dW - 4 * inv_dx2 * W * (Cb.transpose() * vn[k]);
-      }
+    for_each_stencil_node(s, shape.nx, dx, [&](const StencilNode& nd) {
+      const size_t k = nd.k;
+      const double W = nd.w;
+      vn_bar[k] += W * (vpic_bar + dv_bar) + 4 * inv_dx2 * W * Cb * nd.dpos;
+      vo_bar[k] -= W * dv_bar;
+      // Position dependence of the weights and of dpos (d dpos / dx = -I).
+      const Vec2 dW(st[p].dwx[nd.a] * s.wy[nd.b], s.wx[nd.a] * st[p].dwy[nd.b]);
+      const double g = vn[k].dot(vpic_bar + dv_bar) - vo[k].dot(dv_bar) + 4 * inv_dx2 * vn[k].dot(Cb * nd.dpos);
+      out.x[p] += g * dW - 4 * inv_dx2 * W * (Cb.transpose() * vn[k]);
+    });
   }
   // --- Backward through the grid update: v = BC(M / m); the projection is symmetric.
   std::vector<Vec2> MN_bar(nodes, Vec2::Zero()), MO_bar(nodes, Vec2::Zero());
@@ -214,20 +203,18 @@ void kernel_transfer_adjoint(const StepInputs& in, const Grid& shape, const Worl
   for (size_t p = 0; p < n; ++p) {
     const Stencil& s = st[p].s;
     double s_bar = 0;
-    for (int b = 0; b < 3; ++b)
-      for (int a = 0; a < 3; ++a) {
-        const size_t k = node_of(s, a, b);
-        const double W = s.wx[a] * s.wy[b];
-        const Vec2 dpos = dx * Vec2(a - s.fx, b - s.fy);
-        const Vec2 mo_bar = MO_bar[k] + MN_bar[k];  // MN contains MO
-        out.v[p] += W * m * mo_bar;
-        out.C[p] += W * m * mo_bar * dpos.transpose();
-        s_bar += W * MN_bar[k].dot(dpos);
-        const Vec2 dW(st[p].dwx[a] * s.wy[b], s.wx[a] * st[p].dwy[b]);
-        const Vec2 mo = m * w.v[p] + m * w.C[p] * dpos;
-        const double g = mo_bar.dot(mo) + stress_s[p] * MN_bar[k].dot(dpos) + m * mass_bar[k];
-        out.x[p] += g * dW - W * m * (w.C[p].transpose() * mo_bar) - W * stress_s[p] * MN_bar[k];
-      }
+    for_each_stencil_node(s, shape.nx, dx, [&](const StencilNode& nd) {
+      const size_t k = nd.k;
+      const double W = nd.w;
+      const Vec2 mo_bar = MO_bar[k] + MN_bar[k];  // MN contains MO
+      out.v[p] += W * m * mo_bar;
+      out.C[p] += W * m * mo_bar * nd.dpos.transpose();
+      s_bar += W * MN_bar[k].dot(nd.dpos);
+      const Vec2 dW(st[p].dwx[nd.a] * s.wy[nd.b], s.wx[nd.a] * st[p].dwy[nd.b]);
+      const Vec2 mo = m * w.v[p] + m * w.C[p] * nd.dpos;
+      const double g = mo_bar.dot(mo) + stress_s[p] * MN_bar[k].dot(nd.dpos) + m * mass_bar[k];
+      out.x[p] += g * dW - W * m * (w.C[p].transpose() * mo_bar) - W * stress_s[p] * MN_bar[k];
+    });
     // s_p = dt V0 (4/dx^2) J P(J), P = scale E (J^-gamma - 1), scale = 1 for J < 1 else s_t.
     const double J = w.J[p], c0 = dt * vol0 * 4 * inv_dx2;
     const double scale = J < 1 ? 1.0 : P.tension_scale, Jg = std::pow(J, -P.gamma);

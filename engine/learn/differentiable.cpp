@@ -47,6 +47,65 @@ Eigen::Matrix4d local_jacobian(F&& f, const Eigen::Vector4d& at) {
   }
   return J;
 }
+
+// Adjoint of drive_point for agent p of the stored state w (heading_prev: its heading before
+// the step): given a_bar = dL/da_p and h_bar = dL/dheading_p, adds dL/dx_p, dL/dv_p and the
+// gradients of tau, v0_scale and the force terms' parameters. With e the desired direction,
+// f = prod_t f_t the terms' speed factors and a_t their accelerations:
+//   a = (s v0 f e - v) / tau + sum_t a_t;   heading = e (or v / |v| where e = 0).
+// The terms' parts are exact (their own vector-Jacobian products); e(x) comes from the
+// behaviour's navigation field, a pointwise function whose Jacobian is taken by central
+// differences (DESIGN.md section 4 allows local Jacobians of pointwise functions).
+void drive_adjoint(const StepInputs& in, const Behaviour& beh, const World& w, size_t p, const Vec2& heading_prev,
+                   const Vec2& a_bar, const Vec2& h_bar, Vec2& x_bar, Vec2& v_bar, ModelGradient& out) {
+  const MaterialParams& P = in.model.params;
+  const Vec2 x = w.x[p], v = w.v[p];
+  const TermPoint pt{x, v, heading_prev, w.group[p], in.time};
+  const bool driven = beh.kind != Behaviour::Kind::None;
+  const Vec2 e = desired_direction(in, beh, x);
+  // The speed factors, each term's own and the product of the others'.
+  std::vector<double> f_own(in.terms.size(), 1.0);
+  double f = 1;
+  for (size_t t = 0; t < in.terms.size(); ++t) {
+    if (!in.terms[t].applies(pt.group)) continue;
+    Vec2 unused = Vec2::Zero();
+    in.terms[t].law->eval(in.terms[t].params.data(), pt, unused, f_own[t]);
+    f *= f_own[t];
+  }
+  const double speed = P.v0_scale * w.v0[p];
+  Vec2 e_bar = h_bar.squaredNorm() > 0 && e.squaredNorm() > 0 ? h_bar : Vec2::Zero();
+  double f_bar = 0;
+  if (driven) {
+    const Vec2 a_drive = (speed * f * e - v) / P.tau;
+    e_bar += a_bar * (speed * f / P.tau);
+    f_bar = a_bar.dot(speed * e) / P.tau;
+    v_bar -= a_bar / P.tau;
+    out.params.tau += a_bar.dot(-a_drive / P.tau);
+    out.params.v0_scale += a_bar.dot(w.v0[p] * f * e / P.tau);
+  }
+  if (e_bar.squaredNorm() > 0) {
+    const double h = 1e-7;
+    for (int c = 0; c < 2; ++c) {
+      Vec2 up = x, dn = x;
+      up[c] += h;
+      dn[c] -= h;
+      x_bar[c] += e_bar.dot(desired_direction(in, beh, up) - desired_direction(in, beh, dn)) / (2 * h);
+    }
+  }
+  if (h_bar.squaredNorm() > 0 && e.squaredNorm() == 0 && v.squaredNorm() > 1e-8) {
+    // Heading = v / |v| when there is no desired direction.
+    const Vec2 u = v.normalized();
+    v_bar += (h_bar - h_bar.dot(u) * u) / v.norm();
+  }
+  for (size_t t = 0; t < in.terms.size(); ++t) {
+    const Term& term = in.terms[t];
+    if (!term.applies(pt.group)) continue;
+    double others = 1;
+    for (size_t u = 0; u < in.terms.size(); ++u)
+      if (u != t) others *= f_own[u];
+    term.law->vjp(term.params.data(), pt, a_bar, f_bar * others, x_bar, v_bar, out.terms[t].data());
+  }
+}
 }  // namespace
 
 ModelGradient WindowGradient::run(Simulation& sim, int steps, const StateLossGrad& loss_grad) {
@@ -71,9 +130,11 @@ ModelGradient WindowGradient::run(Simulation& sim, int steps, const StateLossGra
     into.back().force = sim.world().pair_force;
     into.back().heading_used = sim.world().heading;
   };
+  std::vector<double> step_time;  // the clock at the start of each step (time-dependent terms)
   peak_stored_steps_ = 0;
   if (!checkpointing) states.reserve(static_cast<size_t>(steps));
   for (int k = 0; k < steps; ++k) {
+    step_time.push_back(sim.time());
     if (checkpointing) {
       if (k % K == 0) {
         checkpoints.push_back(store(sim.world()));
@@ -96,6 +157,7 @@ ModelGradient WindowGradient::run(Simulation& sim, int steps, const StateLossGra
   const Simulation::Clock final_clock = sim.clock();
   ModelGradient out;
   out.network.assign(model.traction.parameter_count(), 0);
+  for (const Term& t : sim.scenario().terms) out.terms.emplace_back(t.params.size(), 0.0);
   std::vector<Vec2> xb(n, Vec2::Zero()), vb(n, Vec2::Zero());
   std::vector<Mat2> Cb(n, Mat2::Zero());
   std::vector<double> Jb(n, 0);
@@ -158,54 +220,23 @@ ModelGradient WindowGradient::run(Simulation& sim, int steps, const StateLossGra
     };
     xadj.reset(n);
     kernel_transfer_adjoint(in, grid, w, xb, vb, Cb, Jb, xadj, hook, &ctx);
-    out.E += xadj.E;
-    out.gamma += xadj.gamma;
-    out.tension_scale += xadj.tension_scale;
-    out.alignment_time += xadj.alignment_time;
+    out.params.E += xadj.E;
+    out.params.gamma += xadj.gamma;
+    out.params.tension_scale += xadj.tension_scale;
+    out.params.alignment_time += xadj.alignment_time;
     // Traction adjoint.
     tadj.reset(n, out.network.size());
     kernel_traction_adjoint(in, nb, w, xadj.force, tadj);
     for (size_t i = 0; i < out.network.size(); ++i) out.network[i] += tadj.network[i];
-    // Drive adjoint: accel and heading as local functions of (x, v); tau and v0_scale exactly.
+    // Drive adjoint.
+    in.time = step_time[static_cast<size_t>(k)];
     for (size_t p = 0; p < n; ++p) {
-      const Behaviour& beh = behaviours[static_cast<size_t>(w.behaviour[p])];
-      const Vec2 hb = tadj.heading[p];
-      const Vec2 ab = xadj.accel[p];
-      // Acceleration and heading as functions of x (local central differences: the navigation
-      // field and the behaviours are pointwise); the acceleration's v-dependence is exact.
-      auto drive_x = [&](const Vec2& x) {
-        Vec2 a, h;
-        drive_point(in, beh, w.group[p], x, w.v[p], w.v0[p], st.heading[p], a, h);
-        return std::make_pair(a, h);
-      };
-      Vec2 gx = Vec2::Zero();
-      const double hx = 1e-7;
-      for (int c = 0; c < 2; ++c) {
-        Vec2 up = w.x[p], dn = w.x[p];
-        up[c] += hx;
-        dn[c] -= hx;
-        auto [au, hu] = drive_x(up);
-        auto [ad, hd] = drive_x(dn);
-        gx[c] = (ab.dot(au - ad) + hb.dot(hu - hd)) / (2 * hx);
-      }
-      Vec2 gv = Vec2::Zero();
-      if (beh.kind != Behaviour::Kind::None) gv -= ab / P.tau;  // a = (s v0 e - v) / tau
-      if (hb.squaredNorm() > 0 && desired_direction(in, beh, w.x[p]).squaredNorm() == 0 && w.v[p].squaredNorm() > 1e-8) {
-        // Heading = v / |v| when there is no desired direction.
-        const Vec2 u = w.v[p].normalized();
-        gv += (hb - hb.dot(u) * u) / w.v[p].norm();
-      }
+      Vec2 gx = Vec2::Zero(), gv = Vec2::Zero();
+      drive_adjoint(in, behaviours[static_cast<size_t>(w.behaviour[p])], w, p, st.heading[p], xadj.accel[p], tadj.heading[p],
+                    gx, gv, out);
       xb[p] = xadj.x[p] + tadj.x[p] + gx;
       vb[p] = xadj.v[p] + tadj.v[p] + gv;
-      if (beh.kind != Behaviour::Kind::None) {
-        // a_drive = (s v0 e - v) / tau with e the desired direction; body forces do not depend
-        // on tau or on s = v0_scale.
-        const Vec2 e = desired_direction(in, beh, w.x[p]);
-        const Vec2 a_drive = (P.v0_scale * w.v0[p] * e - w.v[p]) / P.tau;
-        out.tau += ab.dot(-a_drive / P.tau);
-        out.v0_scale += ab.dot(w.v0[p] * e / P.tau);
-      }
-      out.comfort_distance += tadj.comfort[p];
+      out.params.comfort_distance += tadj.comfort[p];
       Cb[p] = xadj.C[p];
       Jb[p] = xadj.J[p];
     }

@@ -14,8 +14,9 @@
 namespace crowdmpm {
 
 struct ModelGradient {
-  double E = 0, gamma = 0, tension_scale = 0, tau = 0, v0_scale = 0, comfort_distance = 0, alignment_time = 0;
+  MaterialParams params = zero_params();  // dL/dp for each parameter p, read with ParamInfo::field
   std::vector<double> network;  // TractionNet::parameters() order
+  std::vector<std::vector<double>> terms;  // per scenario term (ScenarioDef::terms), per parameter
   std::vector<Vec2> x0, v0;     // initial positions and velocities, per particle (dense order at the start)
 };
 

@@ -4,95 +4,91 @@
 #include "engine/learn/optim.hpp"
 
 #include <algorithm>
+#include <filesystem>
 #include <cmath>
 #include <limits>
+#include <optional>
 
 namespace crowdmpm {
 
-const std::vector<std::string>& differentiable_params() {
-  static const std::vector<std::string> names = {"E",        "gamma",           "tension_scale", "tau",
-                                                 "v0_scale", "comfort_distance", "alignment_time"};
+std::vector<std::string> learnable_params(const Model& m) {
+  std::vector<std::string> names;
+  for (const auto& info : param_table())
+    if (info.learnable_in(m)) names.push_back(info.name);
   return names;
 }
 
-const std::vector<std::string>& social_force_params() {
-  static const std::vector<std::string> names = {"tau", "v0_scale", "sf_A", "sf_B", "sf_k", "sf_kappa"};
-  return names;
+Fitted Fitted::of(const Model& m, const std::vector<ScenarioDef>& scenarios) {
+  Fitted f{m, {}};
+  for (const auto& s : scenarios) f.terms.push_back(s.terms);
+  return f;
 }
 
 namespace {
-double gradient_of(const ModelGradient& g, const std::string& name) {
-  if (name == "E") return g.E;
-  if (name == "gamma") return g.gamma;
-  if (name == "tension_scale") return g.tension_scale;
-  if (name == "tau") return g.tau;
-  if (name == "v0_scale") return g.v0_scale;
-  if (name == "comfort_distance") return g.comfort_distance;
-  if (name == "alignment_time") return g.alignment_time;
-  throw Error("parameter '" + name + "' has no gradient; learnable by gradient: E, gamma, tension_scale, tau, "
-              "v0_scale, comfort_distance, alignment_time");
-}
-
-const ParamInfo& info_of(const std::string& name) {
-  for (const auto& p : param_table())
-    if (name == p.name) return p;
-  std::string known;
-  for (const auto& p : param_table()) known += (known.empty() ? "" : ", ") + std::string(p.name);
-  throw Error("unknown model parameter '" + name + "' (known: " + known + ")");
-}
-
 // Smallest value a log-coordinate parameter is clamped to.
 double log_floor(const ParamInfo& p) { return std::max(p.lo, 1e-6); }
 }  // namespace
 
-ParamMap::ParamMap(const Model& m, std::vector<std::string> scalars, bool network) : scalars_(std::move(scalars)) {
-  if (scalars_.empty())
-    for (const auto& s : m.is_continuum() ? differentiable_params() : social_force_params())
-      if (!(s == "tension_scale" && m.material == MaterialKind::Fluid)) scalars_.push_back(s);
-  ModelGradient probe;
+ParamMap::ParamMap(const Fitted& f, std::vector<std::string> scalars, bool network, bool learn_scalars)
+    : scalars_(std::move(scalars)) {
+  const Model& m = f.model;
+  if (m.material == MaterialKind::Elastic) throw Error("the elastic material is not learned");
+  if (!learn_scalars && !scalars_.empty()) throw Error("parameters listed although no scalar parameter is to be learned");
+  if (scalars_.empty() && learn_scalars) scalars_ = learnable_params(m);
   for (size_t i = 0; i < scalars_.size(); ++i) {
     const std::string& s = scalars_[i];
-    info_of(s);  // throws for unknown names
-    if (m.is_continuum()) {
-      gradient_of(probe, s);  // throws for parameters without a gradient
-    } else if (std::find(social_force_params().begin(), social_force_params().end(), s) == social_force_params().end()) {
-      throw Error("parameter '" + s + "' is not learnable for the social_force model (learnable: tau, v0_scale, sf_A, sf_B, sf_k, sf_kappa)");
+    const ParamInfo& info = param_info(s);  // throws for unknown names
+    if (!info.learnable_in(m)) {
+      std::string known;
+      for (const auto& n : learnable_params(m)) known += (known.empty() ? "" : ", ") + n;
+      throw Error("parameter '" + s + "' is not learnable for the " + material_name(m.material) + " model (learnable: " +
+                  known + ")");
     }
-    if (s == "tension_scale" && m.material == MaterialKind::Fluid)
-      throw Error("the fluid material is symmetric: tension_scale is fixed at 1 and cannot be learned");
     for (size_t j = 0; j < i; ++j)
       if (scalars_[j] == s) throw Error("parameter '" + s + "' is listed twice");
-    log_.push_back(s != "tension_scale");
+    info_.push_back(&info);
+    log_.push_back(info.field != &MaterialParams::tension_scale);
     if (s == "E") e_index_ = static_cast<int>(i);
     if (s == "gamma") gamma_index_ = static_cast<int>(i);
   }
   if (e_index_ < 0 || gamma_index_ < 0) e_index_ = gamma_index_ = -1;
   if (network && m.has_traction()) network_size_ = m.traction.parameter_count();
+  for (size_t d = 0; d < f.terms.size(); ++d)
+    for (size_t t = 0; t < f.terms[d].size(); ++t)
+      for (size_t k = 0; k < f.terms[d][t].learn.size(); ++k)
+        if (f.terms[d][t].learn[k]) {
+          if (!m.is_continuum())
+            throw Error(f.terms[d][t].path + ".learn: force terms are learned with the crowd and fluid materials (their adjoint), not " +
+                        material_name(m.material));
+          terms_.push_back(TermSlot{d, t, k});
+        }
 }
 
-std::vector<double> ParamMap::get(const Model& m) const {
+std::vector<double> ParamMap::get(const Fitted& f) const {
   std::vector<double> u;
   for (size_t i = 0; i < scalars_.size(); ++i) {
-    double p = m.get(scalars_[i]);
-    u.push_back(log_[i] ? std::log(std::max(p, log_floor(info_of(scalars_[i])))) : p);
+    double p = f.model.params.*info_[i]->field;
+    u.push_back(log_[i] ? std::log(std::max(p, log_floor(*info_[i]))) : p);
   }
   // E and gamma together: the first coordinate is log(E gamma), the stiffness at J = 1.
   if (e_index_ >= 0) u[static_cast<size_t>(e_index_)] += u[static_cast<size_t>(gamma_index_)];
   if (network_size_) {
-    std::vector<double> th = m.traction.parameters();
+    std::vector<double> th = f.model.traction.parameters();
     u.insert(u.end(), th.begin(), th.end());
   }
+  for (const TermSlot& s : terms_) u.push_back(f.terms[s.dataset][s.term].params[s.param]);
   return u;
 }
 
-void ParamMap::set(Model& m, const std::vector<double>& u_in) const {
+void ParamMap::set(Fitted& f, const std::vector<double>& u_in) const {
   if (u_in.size() != size()) throw Error("ParamMap::set: expected " + std::to_string(size()) + " values");
+  Model& m = f.model;
   std::vector<double> u = u_in;
   auto bounded = [&](size_t i, double p) {
-    const ParamInfo& info = info_of(scalars_[i]);
+    const ParamInfo& info = *info_[i];
     double lo = log_[i] ? log_floor(info) : info.lo;
     // The pair traction needs comfort distances above the contact epsilon.
-    if (scalars_[i] == "comfort_distance") lo = std::max(lo, 2 * m.params.contact_epsilon);
+    if (info.field == &MaterialParams::comfort_distance) lo = std::max(lo, 2 * m.params.contact_epsilon);
     return std::clamp(p, lo, info.hi);
   };
   if (e_index_ >= 0) {
@@ -103,20 +99,37 @@ void ParamMap::set(Model& m, const std::vector<double>& u_in) const {
     u[static_cast<size_t>(e_index_)] -= std::log(gamma);
   }
   for (size_t i = 0; i < scalars_.size(); ++i) m.set(scalars_[i], bounded(i, log_[i] ? std::exp(u[i]) : u[i]));
-  if (network_size_) m.traction.set_parameters(std::vector<double>(u.begin() + static_cast<long>(scalars_.size()), u.end()));
+  const size_t net0 = scalars_.size(), term0 = net0 + network_size_;
+  if (network_size_)
+    m.traction.set_parameters(std::vector<double>(u.begin() + static_cast<long>(net0), u.begin() + static_cast<long>(term0)));
+  for (size_t j = 0; j < terms_.size(); ++j) {
+    const TermSlot& s = terms_[j];
+    f.terms[s.dataset][s.term].set_clamped(s.param, u[term0 + j]);
+  }
 }
 
-std::vector<double> ParamMap::gradient(const Model& m, const ModelGradient& g) const {
+std::vector<double> ParamMap::gradient(const Fitted& f, const ModelGradient& g, size_t dataset) const {
   std::vector<double> d;
   for (size_t i = 0; i < scalars_.size(); ++i) {
-    double gi = gradient_of(g, scalars_[i]);
-    d.push_back(log_[i] ? gi * m.get(scalars_[i]) : gi);  // dL/dlog p = p dL/dp
+    const double gi = g.params.*info_[i]->field;
+    d.push_back(log_[i] ? gi * (f.model.params.*info_[i]->field) : gi);  // dL/dlog p = p dL/dp
   }
   // With u_E = log E + log gamma and u_g = log gamma: dL/du_E = dL/dlog E and
   // dL/du_g = dL/dlog gamma - dL/dlog E.
   if (e_index_ >= 0) d[static_cast<size_t>(gamma_index_)] -= d[static_cast<size_t>(e_index_)];
   if (network_size_) d.insert(d.end(), g.network.begin(), g.network.end());
+  for (const TermSlot& s : terms_)
+    d.push_back(s.dataset == dataset && s.term < g.terms.size() ? g.terms[s.term][s.param] : 0.0);
   return d;
+}
+
+std::vector<std::pair<size_t, std::string>> ParamMap::term_parameter_names(const Fitted& f) const {
+  std::vector<std::pair<size_t, std::string>> out;
+  for (const TermSlot& s : terms_) {
+    const Term& t = f.terms[s.dataset][s.term];
+    out.emplace_back(s.dataset, t.path + "." + t.parameter_names()[s.param]);
+  }
+  return out;
 }
 
 void make_windows(const std::vector<TrainDataset>& data, const TrainOptions& o, std::vector<TrainWindow>& train,
@@ -264,22 +277,20 @@ TrainResult train_model(const std::vector<TrainDataset>& data, const Model& star
   return train_on_windows(scenarios, train, val, start, o, progress);
 }
 
-TrainResult train_on_windows(const std::vector<ScenarioDef>& scenarios, const std::vector<TrainWindow>& train,
-                             const std::vector<TrainWindow>& val, const Model& start, const TrainOptions& o,
-                             const TrainCallback& progress) {
-  if (start.material == MaterialKind::Elastic) throw Error("training covers the crowd, fluid and social_force models, not elastic");
+namespace {
+// Throws Error naming the first window that cannot be trained on.
+void check_windows(size_t scenarios, const std::vector<TrainWindow>& train, const std::vector<TrainWindow>& val,
+                   double window_seconds) {
   if (train.empty() || val.empty())
-    throw Error("training needs recordings long enough for windows of " + format_number(o.window) +
+    throw Error("training needs recordings long enough for windows of " + format_number(window_seconds) +
                 " s for both training and validation (got " + std::to_string(train.size()) + " training and " +
                 std::to_string(val.size()) + " validation windows)");
-  std::vector<ScenarioDef> windowed;
-  for (const auto& s : scenarios) windowed.push_back(window_scenario(s, false));
   for (const auto* set : {&train, &val})
     for (size_t i = 0; i < set->size(); ++i) {
       const TrainWindow& w = (*set)[i];
       const std::string where = std::string(set == &train ? "training" : "validation") + " window " + std::to_string(i);
-      if (w.dataset >= windowed.size())
-        throw Error(where + " names scenario " + std::to_string(w.dataset) + " of " + std::to_string(windowed.size()));
+      if (w.dataset >= scenarios)
+        throw Error(where + " names scenario " + std::to_string(w.dataset) + " of " + std::to_string(scenarios));
       const size_t n = w.start.ids.size();
       if (w.start.x.size() != n || w.start.v.size() != n || (!w.start.speed.empty() && w.start.speed.size() != n))
         throw Error(where + ": start state has " + std::to_string(n) + " ids but " + std::to_string(w.start.x.size()) +
@@ -290,111 +301,62 @@ TrainResult train_on_windows(const std::vector<ScenarioDef>& scenarios, const st
         if (w.seen[k].size() != n)
           throw Error(where + ": frame " + std::to_string(k + 1) + " has " + std::to_string(w.seen[k].size()) + " positions for " + std::to_string(n) + " people");
     }
+}
 
-  TrainResult res;
-  res.train_windows = train.size();
-  res.validation_windows = val.size();
-  Model model = start;
-  const ParamMap map(model, o.params, o.learn_network);
-  std::vector<double> u = map.get(model);
-  map.set(model, u);  // clamp the start into bounds the way every later step is
-  double lr = o.learning_rate;
-  Adam adam(u.size(), lr);
-  adam.set_clip_norm(o.clip_norm);
-  Rng rng(o.seed);
+// Scores candidates on the windows: validation losses, and training losses with their gradients
+// in the optimiser's coordinates. Windows are independent: with several threads each runs whole
+// windows on one thread (simulation and backward pass), and their results are summed in window
+// order, so training gives the same model for any thread count.
+class WindowScorer {
+ public:
+  WindowScorer(const std::vector<ScenarioDef>& scenarios, const std::vector<TrainWindow>& train,
+               const std::vector<TrainWindow>& val, const ParamMap& map, const TrainOptions& o)
+      : scenarios_(scenarios), train_(train), val_(val), map_(map), one_(o), pool_(std::max(1, o.threads)) {
+    for (const auto& s : scenarios) windowed_.push_back(window_scenario(s, false));
+    one_.threads = 1;
+  }
 
-  // Windows are independent: with several threads each runs whole windows on one thread
-  // (simulation and backward pass), and their results are summed in window order, so training
-  // gives the same model for any thread count.
-  ThreadPool pool(std::max(1, o.threads));
-  TrainOptions one = o;
-  one.threads = 1;
-  const double nan = std::numeric_limits<double>::quiet_NaN();
-  auto validation_loss = [&](const Model& m) {
-    std::vector<double> ls(val.size(), nan);
-    std::vector<char> broke(val.size(), 0);
-    pool.parallel_for(val.size(), [&](size_t b, size_t e) {
+  // Mean validation loss; infinite when the candidate breaks a simulation (not a candidate).
+  double validation_loss(const Fitted& m) {
+    std::vector<double> ls(val_.size(), nan());
+    std::vector<char> broke(val_.size(), 0);
+    pool_.parallel_for(val_.size(), [&](size_t b, size_t e) {
       for (size_t j = b; j < e; ++j) {
         try {
-          ls[j] = window_loss(windowed[val[j].dataset], val[j], m, one, nullptr);
-        } catch (const Error&) {
+          ls[j] = window_loss(venue(m, val_[j].dataset), val_[j], m.model, one_, nullptr);
+        } catch (const UnstableError&) {
           broke[j] = 1;
+        } catch (const Error& err) {
+          throw Error(window_name(val_[j]) + ": " + err.what());
         }
       }
     }, 1);
     double sum = 0;
     long n = 0;
-    for (size_t j = 0; j < val.size(); ++j) {
-      if (broke[j]) return std::numeric_limits<double>::infinity();  // this model breaks a simulation: not a candidate
+    for (size_t j = 0; j < val_.size(); ++j) {
+      if (broke[j]) return std::numeric_limits<double>::infinity();
       if (std::isfinite(ls[j])) {
         sum += ls[j];
         ++n;
       }
     }
-    return n ? sum / static_cast<double>(n) : nan;
-  };
+    return n ? sum / static_cast<double>(n) : nan();
+  }
 
-  res.initial_validation = res.best_validation = validation_loss(model);
-  if (!std::isfinite(res.initial_validation))
-    throw Error("training: the starting model cannot be scored on the validation windows (loss " +
-                format_number(res.initial_validation) + "): no person could be compared, or its simulations fail");
-  res.model = model;
-  int since_best = 0;
-  // Full passes over the training windows in a seeded random order, `batch` windows a step.
-  std::vector<size_t> order(train.size());
-  size_t cursor = order.size();
-  // Mean loss of some training windows and its gradient in the optimiser's coordinates.
-  // One window's loss and, when asked, its gradient in the optimiser's coordinates; NaN loss
-  // when it cannot be compared, `failed` when its simulation broke.
-  struct WindowResult {
-    double loss = std::numeric_limits<double>::quiet_NaN();
-    std::vector<double> grad;
-    bool failed = false;
-  };
-  auto one_window = [&](const Model& m, const TrainWindow& w, bool want_grad) {
-    WindowResult r;
-    try {
-      ModelGradient mg;
-      r.loss = window_loss(windowed[w.dataset], w, m, one, want_grad && m.is_continuum() ? &mg : nullptr);
-      if (want_grad && std::isfinite(r.loss)) {
-        if (m.is_continuum()) {
-          r.grad = map.gradient(m, mg);
-        } else {
-          // The social force model has no adjoint here: central differences in the
-          // optimiser's coordinates (a few scalars; each costs two forward runs).
-          const std::vector<double> u0 = map.get(m);
-          const double h = 3e-3;
-          for (size_t k = 0; k < u0.size(); ++k) {
-            double side[2];
-            for (int sgn = 0; sgn < 2; ++sgn) {
-              std::vector<double> uk = u0;
-              uk[k] += sgn ? -h : h;
-              Model mk = m;
-              map.set(mk, uk);
-              side[sgn] = window_loss(windowed[w.dataset], w, mk, one, nullptr);
-            }
-            r.grad.push_back((side[0] - side[1]) / (2 * h));
-          }
-        }
-        for (double x : r.grad) r.failed = r.failed || !std::isfinite(x);
-      }
-    } catch (const Error&) {
-      r.failed = true;
-    }
-    return r;
-  };
-  // Mean loss of some training windows and its gradient in the optimiser's coordinates.
-  auto batch_loss = [&](const Model& m, const std::vector<size_t>& idx, std::vector<double>* g, int* n_used = nullptr) {
+  // Mean loss of training windows idx and, when g is given, its gradient; NaN when none could
+  // be scored. Windows whose simulation broke are counted in `skipped` and left out.
+  double batch_loss(const Fitted& m, const std::vector<size_t>& idx, std::vector<double>* g, long& skipped,
+                    int* n_used = nullptr) {
     std::vector<WindowResult> rs(idx.size());
-    pool.parallel_for(idx.size(), [&](size_t b, size_t e) {
-      for (size_t j = b; j < e; ++j) rs[j] = one_window(m, train[idx[j]], g != nullptr);
+    pool_.parallel_for(idx.size(), [&](size_t b, size_t e) {
+      for (size_t j = b; j < e; ++j) rs[j] = one_window(m, train_[idx[j]], g != nullptr);
     }, 1);
-    if (g) g->assign(u.size(), 0.0);
+    if (g) g->assign(map_.size(), 0.0);
     double loss_sum = 0;
     int used = 0;
     for (const WindowResult& r : rs) {
       if (r.failed) {
-        ++res.skipped_windows;
+        ++skipped;
         continue;
       }
       if (!std::isfinite(r.loss)) continue;
@@ -404,127 +366,268 @@ TrainResult train_on_windows(const std::vector<ScenarioDef>& scenarios, const st
       ++used;
     }
     if (n_used) *n_used = used;
-    if (used == 0) return std::numeric_limits<double>::quiet_NaN();
+    if (used == 0) return nan();
     if (g)
       for (double& x : *g) x /= used;
     return loss_sum / used;
-  };
-  std::vector<size_t> all(train.size());
-  for (size_t i = 0; i < all.size(); ++i) all[i] = i;
-  Lbfgs lbfgs;
-  std::vector<double> g_full;
-  int used_full = 0, failed_searches = 0;
-  double f_full = o.optimizer == TrainOptions::Optimizer::Lbfgs ? batch_loss(model, all, &g_full, &used_full) : 0;
+  }
 
+ private:
+  // One window's loss and, when asked, its gradient; NaN loss when nobody can be compared,
+  // `failed` when its simulation became unstable.
+  struct WindowResult {
+    double loss = std::numeric_limits<double>::quiet_NaN();
+    std::vector<double> grad;
+    bool failed = false;
+  };
+  static double nan() { return std::numeric_limits<double>::quiet_NaN(); }
+
+  // A window's venue with the force terms being fitted.
+  ScenarioDef venue(const Fitted& f, size_t d) const {
+    ScenarioDef s = windowed_[d];
+    s.terms = f.terms[d];
+    return s;
+  }
+  std::string window_name(const TrainWindow& w) const {
+    return "window at frame " + std::to_string(w.start.frame) + " of dataset " + std::to_string(w.dataset) + " (" +
+           scenarios_[w.dataset].source + ")";
+  }
+
+  WindowResult one_window(const Fitted& m, const TrainWindow& w, bool want_grad) const {
+    WindowResult r;
+    try {
+      ModelGradient mg;
+      const ScenarioDef sc = venue(m, w.dataset);
+      r.loss = window_loss(sc, w, m.model, one_, want_grad && m.model.is_continuum() ? &mg : nullptr);
+      if (want_grad && std::isfinite(r.loss)) {
+        r.grad = m.model.is_continuum() ? map_.gradient(m, mg, w.dataset) : central_differences(m, sc, w);
+        for (double x : r.grad) r.failed = r.failed || !std::isfinite(x);
+      }
+    } catch (const UnstableError&) {
+      r.failed = true;  // these parameters break this window's simulation: left out of this step
+    } catch (const Error& e) {
+      throw Error(window_name(w) + ": " + e.what());
+    }
+    return r;
+  }
+
+  // The social force model has no adjoint here: central differences in the optimiser's
+  // coordinates (a few scalars; each costs two forward runs).
+  std::vector<double> central_differences(const Fitted& m, const ScenarioDef& sc, const TrainWindow& w) const {
+    std::vector<double> grad;
+    const std::vector<double> u0 = map_.get(m);
+    const double h = 3e-3;
+    for (size_t k = 0; k < u0.size(); ++k) {
+      double side[2];
+      for (int sgn = 0; sgn < 2; ++sgn) {
+        std::vector<double> uk = u0;
+        uk[k] += sgn ? -h : h;
+        Fitted mk = m;
+        map_.set(mk, uk);
+        side[sgn] = window_loss(sc, w, mk.model, one_, nullptr);
+      }
+      grad.push_back((side[0] - side[1]) / (2 * h));
+    }
+    return grad;
+  }
+
+  const std::vector<ScenarioDef>& scenarios_;
+  std::vector<ScenarioDef> windowed_;
+  const std::vector<TrainWindow>& train_;
+  const std::vector<TrainWindow>& val_;
+  const ParamMap& map_;
+  TrainOptions one_;  // one thread per window
+  ThreadPool pool_;
+};
+
+// The optimisation state of one training run: the candidate, its coordinates, and the best
+// candidate so far.
+struct Search {
+  Fitted model, best;
+  std::vector<double> u;
+};
+
+// One Adam step on the next `batch` windows of full passes in a seeded random order.
+class AdamSearch {
+ public:
+  AdamSearch(const TrainOptions& o, size_t parameters, size_t windows)
+      : o_(o), lr_(o.learning_rate), adam_(parameters, o.learning_rate), rng_(o.seed), order_(windows), cursor_(windows) {
+    adam_.set_clip_norm(o.clip_norm);
+  }
+  void step(Search& s, const ParamMap& map, WindowScorer& scorer, TrainProgress& pr, long& skipped) {
+    std::vector<size_t> idx;
+    for (int b = 0; b < o_.batch && b < static_cast<int>(order_.size()); ++b) {
+      if (cursor_ == order_.size()) {
+        for (size_t i = 0; i < order_.size(); ++i) order_[i] = i;
+        for (size_t i = order_.size(); i > 1; --i) std::swap(order_[i - 1], order_[static_cast<size_t>(rng_.next() % i)]);
+        cursor_ = 0;
+      }
+      idx.push_back(order_[cursor_++]);
+    }
+    std::vector<double> g;
+    pr.train_loss = scorer.batch_loss(s.model, idx, &g, skipped);
+    if (std::isfinite(pr.train_loss)) {
+      pr.grad_norm = adam_.step(s.u, g);
+      map.set(s.model, s.u);
+      s.u = map.get(s.model);  // clamped values back into the optimiser's coordinates
+    } else {
+      // Every window of the batch failed with these parameters (an unstable simulation): back
+      // to the best model so far, with smaller steps.
+      back_to_best(s, map, o_.lr_decay < 1 ? o_.lr_decay : 0.5);
+    }
+  }
+  // No improvement at a validation pass: back to the best point with smaller steps.
+  void no_improvement(Search& s, const ParamMap& map) {
+    if (o_.lr_decay < 1) back_to_best(s, map, o_.lr_decay);
+  }
+
+ private:
+  void back_to_best(Search& s, const ParamMap& map, double factor) {
+    lr_ *= factor;
+    adam_.set_learning_rate(lr_);
+    s.model = s.best;
+    s.u = map.get(s.model);
+  }
+  const TrainOptions& o_;
+  double lr_;
+  Adam adam_;
+  Rng rng_;
+  std::vector<size_t> order_;
+  size_t cursor_;
+};
+
+// L-BFGS on the full batch with a backtracking (Armijo) line search.
+class LbfgsSearch {
+ public:
+  LbfgsSearch(Search& s, size_t windows, WindowScorer& scorer, long& skipped) : all_(windows) {
+    for (size_t i = 0; i < all_.size(); ++i) all_[i] = i;
+    f_ = scorer.batch_loss(s.model, all_, &g_, skipped, &used_);
+  }
+  // Returns true when the search has nothing left to gain (two failed line searches in a row
+  // from the gradient itself).
+  bool step(Search& s, const ParamMap& map, WindowScorer& scorer, TrainProgress& pr, long& skipped) {
+    if (!std::isfinite(f_)) throw Error("training: no training window could be simulated with the starting model");
+    std::vector<double> d = lbfgs_.direction(g_);
+    double slope = 0, gnorm = 0;
+    for (size_t k = 0; k < d.size(); ++k) {
+      slope += d[k] * g_[k];
+      gnorm += g_[k] * g_[k];
+    }
+    pr.grad_norm = std::sqrt(gnorm);
+    if (!(slope < 0)) {  // not a descent direction: restart from the gradient
+      lbfgs_.reset();
+      d = lbfgs_.direction(g_);
+      slope = -gnorm;
+    }
+    // The first step is at most 0.1 in the optimiser's coordinates (10% of a positive scalar).
+    double step_len = 0;
+    for (double x : d) step_len += x * x;
+    double alpha = lbfgs_.empty() ? std::min(1.0, 0.1 / std::sqrt(step_len)) : 1.0;
+    bool accepted = false;
+    int tries = 0;
+    for (; tries < 30 && !accepted; ++tries) {
+      if (tries > 0) alpha *= 0.5;
+      std::vector<double> u_try = s.u;
+      for (size_t k = 0; k < s.u.size(); ++k) u_try[k] += alpha * d[k];
+      Fitted trial = s.model;
+      map.set(trial, u_try);
+      u_try = map.get(trial);
+      std::vector<double> g_try;
+      int used_try = 0;
+      const double f_try = scorer.batch_loss(trial, all_, &g_try, skipped, &used_try);
+      // A trial that breaks windows the reference simulated is not comparable: rejected.
+      if (std::isfinite(f_try) && used_try >= used_ && f_try <= f_ + 1e-4 * alpha * slope) {
+        std::vector<double> sv(s.u.size()), y(s.u.size());
+        for (size_t k = 0; k < s.u.size(); ++k) {
+          sv[k] = u_try[k] - s.u[k];
+          y[k] = g_try[k] - g_[k];
+        }
+        lbfgs_.update(sv, y);
+        s.u = u_try;
+        s.model = trial;
+        f_ = f_try;
+        g_ = g_try;
+        used_ = used_try;
+        accepted = true;
+      }
+    }
+    pr.train_loss = f_;
+    // A failed line search, or one that had to halve the step ten times, means the curvature
+    // pairs no longer describe the loss here (it is only piecewise smooth: contacts begin and
+    // end): forget them and go on from the gradient. Two failures in a row at the same point
+    // from the gradient itself: nothing left to gain, stop.
+    bool done = false;
+    if (!accepted && lbfgs_.empty()) {
+      done = ++failed_searches_ >= 2;
+    } else {
+      failed_searches_ = 0;
+    }
+    if (!accepted || tries > 10) lbfgs_.reset();
+    return done;
+  }
+
+ private:
+  std::vector<size_t> all_;
+  Lbfgs lbfgs_;
+  std::vector<double> g_;
+  double f_ = 0;
+  int used_ = 0, failed_searches_ = 0;
+};
+}  // namespace
+
+TrainResult train_on_windows(const std::vector<ScenarioDef>& scenarios, const std::vector<TrainWindow>& train,
+                             const std::vector<TrainWindow>& val, const Model& start, const TrainOptions& o,
+                             const TrainCallback& progress) {
+  if (start.material == MaterialKind::Elastic) throw Error("training covers the crowd, fluid and social_force models, not elastic");
+  check_windows(scenarios.size(), train, val, o.window);
+  TrainResult res;
+  res.train_windows = train.size();
+  res.validation_windows = val.size();
+  Search s{Fitted::of(start, scenarios), {}, {}};
+  const ParamMap map(s.model, o.params, o.learn_network, o.learn_scalars);
+  if (map.size() == 0) throw Error("training: nothing to learn (no scalar parameter, no network, no force term marked \"learn\")");
+  s.u = map.get(s.model);
+  map.set(s.model, s.u);  // clamp the start into bounds the way every later step is
+  WindowScorer scorer(scenarios, train, val, map, o);
+
+  res.initial_validation = res.best_validation = scorer.validation_loss(s.model);
+  if (!std::isfinite(res.initial_validation))
+    throw Error("training: the starting model cannot be scored on the validation windows (loss " +
+                format_number(res.initial_validation) + "): no person could be compared, or its simulations fail");
+  s.best = s.model;
+  const bool adam = o.optimizer == TrainOptions::Optimizer::Adam;
+  AdamSearch adam_search(o, s.u.size(), train.size());
+  std::optional<LbfgsSearch> lbfgs_search;
+  if (!adam) lbfgs_search.emplace(s, train.size(), scorer, res.skipped_windows);
+  int since_best = 0;
   for (int it = 1; it <= o.iterations; ++it) {
     TrainProgress pr;
     pr.iteration = it;
     pr.validation_loss = std::numeric_limits<double>::quiet_NaN();
-    if (o.optimizer == TrainOptions::Optimizer::Adam) {
-      std::vector<size_t> idx;
-      for (int b = 0; b < o.batch && b < static_cast<int>(train.size()); ++b) {
-        if (cursor == order.size()) {
-          for (size_t i = 0; i < order.size(); ++i) order[i] = i;
-          for (size_t i = order.size(); i > 1; --i) std::swap(order[i - 1], order[static_cast<size_t>(rng.next() % i)]);
-          cursor = 0;
-        }
-        idx.push_back(order[cursor++]);
-      }
-      std::vector<double> g;
-      pr.train_loss = batch_loss(model, idx, &g);
-      if (std::isfinite(pr.train_loss)) {
-        pr.grad_norm = adam.step(u, g);
-        map.set(model, u);
-        u = map.get(model);  // clamped values back into the optimiser's coordinates
-      } else {
-        // Every window of the batch failed with these parameters (an unstable simulation):
-        // back to the best model so far, with smaller steps.
-        model = res.model;
-        u = map.get(model);
-        lr *= o.lr_decay < 1 ? o.lr_decay : 0.5;
-        adam.set_learning_rate(lr);
-      }
-    } else {
-      if (!std::isfinite(f_full)) throw Error("training: no training window could be simulated with the starting model");
-      std::vector<double> d = lbfgs.direction(g_full);
-      double slope = 0, gnorm = 0;
-      for (size_t k = 0; k < d.size(); ++k) {
-        slope += d[k] * g_full[k];
-        gnorm += g_full[k] * g_full[k];
-      }
-      pr.grad_norm = std::sqrt(gnorm);
-      if (!(slope < 0)) {  // not a descent direction: restart from the gradient
-        lbfgs.reset();
-        d = lbfgs.direction(g_full);
-        slope = -gnorm;
-      }
-      // The first step is at most 0.1 in the optimiser's coordinates (10% of a positive scalar).
-      double step_len = 0;
-      for (double x : d) step_len += x * x;
-      double alpha = lbfgs.empty() ? std::min(1.0, 0.1 / std::sqrt(step_len)) : 1.0;
-      bool accepted = false;
-      int tries = 0;
-      for (; tries < 30 && !accepted; ++tries) {
-        if (tries > 0) alpha *= 0.5;
-        std::vector<double> u_try = u;
-        for (size_t k = 0; k < u.size(); ++k) u_try[k] += alpha * d[k];
-        Model trial = model;
-        map.set(trial, u_try);
-        u_try = map.get(trial);
-        std::vector<double> g_try;
-        int used_try = 0;
-        const double f_try = batch_loss(trial, all, &g_try, &used_try);
-        // A trial that breaks windows the reference simulated is not comparable: rejected.
-        if (std::isfinite(f_try) && used_try >= used_full && f_try <= f_full + 1e-4 * alpha * slope) {
-          std::vector<double> s(u.size()), y(u.size());
-          for (size_t k = 0; k < u.size(); ++k) {
-            s[k] = u_try[k] - u[k];
-            y[k] = g_try[k] - g_full[k];
-          }
-          lbfgs.update(s, y);
-          u = u_try;
-          model = trial;
-          f_full = f_try;
-          g_full = g_try;
-          used_full = used_try;
-          accepted = true;
-        }
-      }
-      pr.train_loss = f_full;
-      // A failed line search, or one that had to halve the step ten times, means the curvature
-      // pairs no longer describe the loss here (it is only piecewise smooth: contacts begin and
-      // end): forget them and go on from the gradient. Two failures in a row at the same point
-      // from the gradient itself: nothing left to gain, stop.
-      if (!accepted && lbfgs.empty()) {
-        if (++failed_searches >= 2) res.early_stopped = true;
-      } else {
-        failed_searches = 0;
-      }
-      if (!accepted || tries > 10) lbfgs.reset();
-    }
+    if (adam) adam_search.step(s, map, scorer, pr, res.skipped_windows);
+    else res.early_stopped = lbfgs_search->step(s, map, scorer, pr, res.skipped_windows);
     res.iterations = it;
+    // Validation, keeping the best candidate; early stopping after `patience` passes without improvement.
     if (it % o.eval_every == 0 || it == o.iterations) {
-      pr.validation_loss = validation_loss(model);
+      pr.validation_loss = scorer.validation_loss(s.model);
       if (pr.validation_loss < res.best_validation) {
         res.best_validation = pr.validation_loss;
         res.best_iteration = it;
-        res.model = model;
+        s.best = s.model;
         pr.improved = true;
         since_best = 0;
       } else if (++since_best >= o.patience) {
         res.early_stopped = true;
-      } else if (o.lr_decay < 1 && o.optimizer == TrainOptions::Optimizer::Adam) {
-        // No improvement: go back to the best point and take smaller steps from there.
-        lr *= o.lr_decay;
-        adam.set_learning_rate(lr);
-        model = res.model;
-        u = map.get(model);
+      } else if (adam) {
+        adam_search.no_improvement(s, map);
       }
     }
     res.history.push_back(pr);
     if (progress) progress(pr);
     if (res.early_stopped) break;
   }
+  res.model = s.best.model;
+  res.terms = s.best.terms;
   return res;
 }
 
@@ -584,11 +687,15 @@ TrainJob parse_train_job(const json& request, const std::string& base_dir) {
                           ? DesiredSpeed::Observed
                           : DesiredSpeed::Scenario;
     if (auto ps = op->get("params")) {
+      // [] learns no scalar parameter: only the network and the force terms marked "learn".
       for (size_t i = 0; i < ps->size(); ++i) o.params.push_back(ps->item(i).as_string());
-      if (o.params.empty()) ps->fail("needs at least one parameter name");
+      o.learn_scalars = !o.params.empty();
     }
   }
-  ParamMap check(job.start, o.params, o.learn_network);  // unknown or unlearnable names fail here
+  std::vector<ScenarioDef> venues;
+  for (const auto& d : job.data) venues.push_back(d.scenario);
+  const ParamMap check(Fitted::of(job.start, venues), o.params, o.learn_network, o.learn_scalars);  // unknown or unlearnable names fail here
+  if (check.size() == 0) r.fail("nothing to learn: no scalar parameter, no network and no force term marked \"learn\"");
   return job;
 }
 
@@ -608,6 +715,32 @@ Model describe_learned(const TrainJob& job, const TrainResult& r) {
                   format_number(r.best_validation) + " at iteration " + std::to_string(r.best_iteration) + " of " +
                   std::to_string(r.iterations) + ".";
   return m;
+}
+
+std::vector<std::string> write_fitted_scenarios(const TrainJob& job, const TrainResult& r, const std::string& model_path) {
+  namespace fs = std::filesystem;
+  std::vector<std::string> written;
+  for (size_t d = 0; d < job.data.size() && d < r.terms.size(); ++d) {
+    const ScenarioDef& sc = job.data[d].scenario;
+    bool learned = false;
+    for (const Term& t : sc.terms) learned = learned || t.learned_count() > 0;
+    if (!learned) continue;
+    json j = load_json_file(sc.source);
+    json forces = json::array();
+    for (const Term& t : r.terms[d]) forces.push_back(t.to_json());
+    j["forces"] = forces;
+    const fs::path dir = fs::absolute(fs::path(sc.source)).parent_path();
+    for (const char* key : {"model", "extends"})
+      if (j.contains(key) && j[key].is_string()) {
+        const std::string v = j[key].get<std::string>();
+        if (!v.empty() && v != "default" && fs::path(v).is_relative()) j[key] = (dir / v).lexically_normal().string();
+      }
+    const fs::path out = fs::path(model_path).parent_path() /
+                         (fs::path(model_path).stem().string() + "." + fs::path(sc.source).stem().string() + ".json");
+    save_json_file(j, out.string());
+    written.push_back(out.string());
+  }
+  return written;
 }
 
 void save_model(const Model& m, const std::string& path) { save_json_file(m.to_json(), path); }

@@ -45,6 +45,7 @@ struct TrainOptions {
   double lr_decay = 0.5;         // Adam: learning rate factor (and back to the best point) after a validation pass without improvement
   uint64_t seed = 1;             // minibatch sampling
   std::vector<std::string> params;  // scalar parameters to learn; empty: all the model kind has
+  bool learn_scalars = true;     // false: no scalar parameter (only the network and force terms)
   bool learn_network = true;     // the traction network's weights and biases (crowd material)
   int threads = 1;
   // Gradient checkpoints every this many steps (WindowGradient); 0: only when a window's stored
@@ -53,32 +54,50 @@ struct TrainOptions {
   double max_stored_bytes = 512.0 * 1024 * 1024;
 };
 
+// What training fits: the material model, and the force terms of each dataset's venue
+// (terms[d] are scenarios[d].terms; those with parameters marked "learn" are fitted too).
+struct Fitted {
+  Model model;
+  std::vector<std::vector<Term>> terms;
+  // The model with every venue's own terms.
+  static Fitted of(const Model& m, const std::vector<ScenarioDef>& scenarios);
+};
+
 // The learnable parameters as one vector in the optimiser's coordinates: log p for the positive
-// scalars, p for tension_scale, the raw network parameters; set() clamps to param_table() bounds.
+// scalars, p for tension_scale, the raw network parameters, then the learned force-term
+// parameters as they are; set() clamps to param_table() and the terms' ranges.
 // When E and gamma are both learned, E's coordinate is log(E gamma): the stiffness at J = 1,
 // which trajectories determine well, while gamma (the curvature of the stress law) is told
 // apart only by strong compression. In (log E, log gamma) that is a long diagonal valley;
 // in these coordinates it lies along gamma's axis, where Adam's per-coordinate steps follow it.
 class ParamMap {
  public:
-  ParamMap(const Model& m, std::vector<std::string> scalars, bool network);
-  std::vector<double> get(const Model& m) const;
-  void set(Model& m, const std::vector<double>& u) const;
-  std::vector<double> gradient(const Model& m, const ModelGradient& g) const;  // dL/du
+  // scalars: names from param_table() (empty: every parameter the model kind learns, unless
+  // learn_scalars is false).
+  ParamMap(const Fitted& f, std::vector<std::string> scalars, bool network, bool learn_scalars = true);
+  std::vector<double> get(const Fitted& f) const;
+  void set(Fitted& f, const std::vector<double>& u) const;
+  // dL/du from one window's gradient, recorded in dataset d's venue.
+  std::vector<double> gradient(const Fitted& f, const ModelGradient& g, size_t dataset) const;
   const std::vector<std::string>& scalars() const { return scalars_; }
-  size_t size() const { return scalars_.size() + network_size_; }
+  size_t size() const { return scalars_.size() + network_size_ + terms_.size(); }
+  // "forces[i].key" names of the learned term parameters, with their dataset.
+  std::vector<std::pair<size_t, std::string>> term_parameter_names(const Fitted& f) const;
 
  private:
+  struct TermSlot {
+    size_t dataset, term, param;
+  };
   std::vector<std::string> scalars_;
+  std::vector<const ParamInfo*> info_;
   std::vector<char> log_;
   int e_index_ = -1, gamma_index_ = -1;
   size_t network_size_ = 0;
+  std::vector<TermSlot> terms_;
 };
 
-// The scalar parameters WindowGradient differentiates (crowd and fluid materials).
-const std::vector<std::string>& differentiable_params();
-// The social_force model's learnable scalars (fitted with central-difference gradients).
-const std::vector<std::string>& social_force_params();
+// The scalar parameters a model kind learns (param_table() rows learnable in it).
+std::vector<std::string> learnable_params(const Model& m);
 
 // One window: the state it starts from and where its people were seen afterwards.
 struct TrainWindow {
@@ -111,6 +130,7 @@ struct TrainProgress {
 
 struct TrainResult {
   Model model;                  // the parameters with the best validation loss
+  std::vector<std::vector<Term>> terms;  // each venue's force terms at that point
   double initial_validation = 0, best_validation = 0;
   int best_iteration = 0, iterations = 0;
   bool early_stopped = false;
@@ -149,6 +169,10 @@ TrainJob parse_train_job(const json& request, const std::string& base_dir = "");
 // The best model of a run, named "learned <kind>" and described: what it was learned from and
 // its validation loss before and after.
 Model describe_learned(const TrainJob& job, const TrainResult& r);
+// For every dataset whose venue has learned force terms: its scenario file with "forces" set to
+// the fitted terms (relative "model" and "extends" paths made absolute), written beside the
+// model as <model stem>.<scenario stem>.json. Returns the files written.
+std::vector<std::string> write_fitted_scenarios(const TrainJob& job, const TrainResult& r, const std::string& model_path);
 // Writes a model JSON file; throws Error naming the path if it cannot.
 void save_model(const Model& m, const std::string& path);
 

@@ -88,7 +88,7 @@ WindowSim start_window(const ScenarioDef& sc, const Model& model, const Observed
                           ? std::clamp(s.speed[i], 0.0, std::min(12.0, model.params.max_speed))
                           : sc.groups[0].desired_speed;
     if (!std::isfinite(a.desired_speed)) a.desired_speed = 0;
-    a.behaviour = 1;  // the first group's behaviour
+    a.behaviour = sim.behaviour_of_group(0);
     a.group = 0;
     ws.ids.push_back(sim.geo_ok(x) ? sim.add_agent(a) : 0);
   }

@@ -91,13 +91,13 @@ Mat2 kirchhoff_stress(const Model& m, const Mat2& F, double J) {
 }
 
 // ---------------------------------------------------------------------------------------------
-// 1. Drive: a_p = (v0 e_p - v_p) / tau, plus body forces.
+// 1. Drive: a_p = (s v0 f e_p - v_p) / tau + sum of the force terms (terms.hpp).
 
 Vec2 desired_direction(const StepInputs& in, const Behaviour& b, const Vec2& x) {
   switch (b.kind) {
     case Behaviour::Kind::None: return Vec2::Zero();
     case Behaviour::Kind::Goal:
-      if (b.target && b.target->contains(x)) return Vec2::Zero();
+      if (b.goal && b.goal->contains(x)) return Vec2::Zero();
       return in.navs[b.nav].direction(x);
     case Behaviour::Kind::Orbit: {
       if (b.nav >= 0) {
@@ -128,20 +128,10 @@ void drive_point(const StepInputs& in, const Behaviour& beh, int group, const Ve
                  const Vec2& prev_heading, Vec2& accel, Vec2& heading) {
   const MaterialParams& P = in.model.params;
   Vec2 a = Vec2::Zero();
+  double factor = 1;
+  apply_terms(in.terms, TermPoint{x, v, prev_heading, group, in.time}, a, factor);
   Vec2 dir = desired_direction(in, beh, x);
-  if (beh.kind != Behaviour::Kind::None) a = (P.v0_scale * v0 * dir - v) / P.tau;
-  for (const auto& f : in.forces) {
-    if (!f.applies(group)) continue;
-    if (f.kind == BodyForce::Kind::Uniform) {
-      a += f.acceleration;
-      continue;
-    }
-    Vec2 r = x - f.center;
-    double d = r.norm();
-    if (d < 1e-9 || d > f.range) continue;
-    Vec2 radial = r / d;
-    a += f.kind == BodyForce::Kind::Radial ? Vec2(-f.strength * radial) : Vec2(f.strength * Vec2(-radial.y(), radial.x()));
-  }
+  if (beh.kind != Behaviour::Kind::None) a = (P.v0_scale * v0 * factor * dir - v) / P.tau + a;
   accel = a;
   if (dir.squaredNorm() > 0) heading = dir;
   else if (v.squaredNorm() > 1e-8) heading = v.normalized();
@@ -262,16 +252,12 @@ void kernel_p2g(const StepInputs& in, World& w, Grid& g, ThreadPool& pool) {
         for (int s = g.bin_start[g.node(0, row0)]; s < g.bin_start[static_cast<size_t>(row1) * g.nx]; ++s) {
           const size_t p = static_cast<size_t>(g.order[s]);
           const Stencil& st = g.stencils[p];
-          for (int b = 0; b < 3; ++b)
-            for (int a = 0; a < 3; ++a) {
-              const int k = g.node(st.bx + a, st.by + b);
-              const double weight = st.wx[a] * st.wy[b];
-              const Vec2 dpos = g.dx * Vec2(a - st.fx, b - st.fy);
-              const Vec2 mv = weight * (g.momentum[p] + g.affine[p] * dpos);
-              g.mass[k] += weight * m;
-              g.velocity_old[k] += mv;
-              g.velocity[k] += mv + weight * (g.stress[p] * dpos);
-            }
+          for_each_stencil_node(st, g.nx, g.dx, [&](const StencilNode& nd) {
+            const Vec2 mv = nd.w * (g.momentum[p] + g.affine[p] * nd.dpos);
+            g.mass[nd.k] += nd.w * m;
+            g.velocity_old[nd.k] += mv;
+            g.velocity[nd.k] += mv + nd.w * (g.stress[p] * nd.dpos);
+          });
         }
       }
     }, 1);
@@ -330,16 +316,12 @@ void kernel_g2p(const StepInputs& in, const Grid& g, World& w, ThreadPool& pool)
       Stencil s = stencil(g, w.x[p]);
       Vec2 v_pic = Vec2::Zero(), dv = Vec2::Zero();
       Mat2 C = Mat2::Zero();
-      for (int bj = 0; bj < 3; ++bj)
-        for (int ai = 0; ai < 3; ++ai) {
-          double weight = s.wx[ai] * s.wy[bj];
-          const int k = g.node(s.bx + ai, s.by + bj);
-          const Vec2& vi = g.velocity[k];
-          Vec2 dpos = g.dx * Vec2(ai - s.fx, bj - s.fy);
-          v_pic += weight * vi;
-          dv += weight * (vi - g.velocity_old[k]);
-          C += 4 * inv_dx2 * weight * vi * dpos.transpose();
-        }
+      for_each_stencil_node(s, g.nx, g.dx, [&](const StencilNode& nd) {
+        const Vec2& vi = g.velocity[nd.k];
+        v_pic += nd.w * vi;
+        dv += nd.w * (vi - g.velocity_old[nd.k]);
+        C += 4 * inv_dx2 * nd.w * vi * nd.dpos.transpose();
+      });
       Vec2 v = (1 - alpha) * (w.v[p] + dv) + alpha * v_pic + dt * (w.accel[p] + w.pair_force[p] / P.mass);
       double speed = v.norm();
       if (speed > P.max_speed) v *= P.max_speed / speed;

@@ -7,36 +7,14 @@
 
 #include "engine/sim/stencil.hpp"
 #include "engine/geometry/geometry.hpp"
+#include "engine/sim/behaviour.hpp"
 #include "engine/sim/model.hpp"
+#include "engine/sim/terms.hpp"
 #include "engine/geometry/navigation.hpp"
 #include "engine/core/parallel.hpp"
 #include "engine/sim/world.hpp"
 
 namespace crowdmpm {
-
-struct Behaviour {
-  enum class Kind { None, Goal, Orbit, Attract };
-  Kind kind = Kind::None;
-  int nav = -1;                  // Goal, Orbit around a structure: index of the navigation field
-  const Shape* target = nullptr; // Goal: agents inside a (non-exit) goal stop
-  Vec2 point = Vec2::Zero();     // Orbit: centre; Attract: the point
-  double sign = 1;               // Orbit: +1 counter-clockwise, -1 clockwise
-  double inward = 0;             // Orbit: weight of the inward (centre-seeking) component
-  double arrive_radius = 0.5;    // Attract: agents within this distance stop, m
-};
-
-struct BodyForce {
-  enum class Kind { Uniform, Radial, Vortex };
-  Kind kind = Kind::Uniform;
-  Vec2 acceleration = Vec2::Zero();  // Uniform, m/s^2
-  Vec2 center = Vec2::Zero();        // Radial, Vortex
-  double strength = 0;               // m/s^2; Radial: > 0 attracts; Vortex: > 0 counter-clockwise
-  double range = 1e300;              // m
-  std::vector<char> applies_to;      // per group index; empty: every group
-  bool applies(int group) const {
-    return applies_to.empty() || (group >= 0 && group < static_cast<int>(applies_to.size()) && applies_to[group]);
-  }
-};
 
 // Background grid, fixed for the life of a world. Nodes at origin + dx (i, j).
 struct Grid {
@@ -93,8 +71,9 @@ struct StepInputs {
   const Geometry& geo;
   const std::vector<NavField>& navs;
   const std::vector<Behaviour>& behaviours;
-  const std::vector<BodyForce>& forces;
+  const std::vector<Term>& terms;  // the venue's force terms (scenario "forces")
   double dt;
+  double time;  // s, at the start of the step
 };
 
 // phi(d) of the pair traction for contact distance theta1, comfort distance c, smallest gap eps.
@@ -106,7 +85,8 @@ Mat2 kirchhoff_stress(const Model& m, const Mat2& F, double J);
 
 // Unit desired direction of a behaviour at x (zero where the agent stands still).
 Vec2 desired_direction(const StepInputs& in, const Behaviour& b, const Vec2& x);
-// One agent's drive (a_p, heading); kernel_drive applies it to every agent.
+// One agent's drive, a_p = (s v0 f e - v) / tau + sum of the terms' accelerations, with f the
+// product of the terms' speed factors, and its heading; kernel_drive applies it to every agent.
 void drive_point(const StepInputs& in, const Behaviour& beh, int group, const Vec2& x, const Vec2& v, double v0,
                  const Vec2& prev_heading, Vec2& accel, Vec2& heading);
 // How far beyond body contact (r_p + r_q) a pair interacts: the comfort distance c for the

@@ -33,14 +33,27 @@ struct MaterialParams {
   double sf_kappa = 3000;        // 1/(m s): sliding friction kappa g(r_pq - d) dv_t
 };
 
+// Which models learn a parameter, and so how its gradient is had: through the simulator's
+// adjoint (the continuum materials: crowd and fluid) or by central differences (social_force).
+enum LearnedBy : unsigned { kFixed = 0, kContinuum = 1, kSocialForce = 2 };
+
+// The one declaration of every parameter: its name in model files and APIs, where it lives, its
+// range and unit, and which models learn it. A gradient (ModelGradient::params) is a
+// MaterialParams too, so `field` also reads a parameter's gradient.
 struct ParamInfo {
   const char* name;
   double MaterialParams::*field;
   double lo, hi;
   const char* unit;
-  bool learnable;
+  unsigned learned_by;  // LearnedBy bits
+  bool sets_up_world;   // read when a world is built (agent sizes, placement, navigation): fixed afterwards
+  bool learnable_in(const class Model& m) const;
 };
 const std::vector<ParamInfo>& param_table();
+// The row of a parameter; throws Error listing the known names.
+const ParamInfo& param_info(const std::string& name);
+// Every field 0 (the start of a gradient).
+MaterialParams zero_params();
 
 class Model {
  public:

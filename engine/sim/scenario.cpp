@@ -13,21 +13,21 @@ static std::string resolve(const std::string& base, const std::string& p) {
   return (!p.empty() && p[0] == '/') ? p : base + "/" + p;
 }
 
-static BehaviourDef parse_behaviour(const JsonReader& r) {
+static Behaviour parse_behaviour(const JsonReader& r) {
   r.require_object();
-  BehaviourDef b;
+  Behaviour b;
   b.path = r.path();
   std::string type = r.one_of("type", {"goal", "orbit", "attract", "none"}, std::nullopt);
   if (type == "none") {
     r.allow_only({"type"});
-    b.kind = BehaviourDef::Kind::None;
+    b.kind = Behaviour::Kind::None;
   } else if (type == "goal") {
     r.allow_only({"type", "target"});
-    b.kind = BehaviourDef::Kind::Goal;
+    b.kind = Behaviour::Kind::Goal;
     b.target = r.string("target", "nearest_exit");
   } else if (type == "orbit") {
     r.allow_only({"type", "center", "around", "direction", "inward"});
-    b.kind = BehaviourDef::Kind::Orbit;
+    b.kind = Behaviour::Kind::Orbit;
     if (r.has("center") == r.has("around"))
       r.fail("orbit needs exactly one of \"center\" (a point) or \"around\" (the id of a goal or exit to circle)");
     if (r.has("center")) b.point = r.vec2("center", std::nullopt);
@@ -36,7 +36,7 @@ static BehaviourDef parse_behaviour(const JsonReader& r) {
     b.inward = r.in_range("inward", -1, 1, 0.0);
   } else {
     r.allow_only({"type", "point", "arrive_radius"});
-    b.kind = BehaviourDef::Kind::Attract;
+    b.kind = Behaviour::Kind::Attract;
     b.point = r.vec2("point", std::nullopt);
     b.arrive_radius = r.non_negative("arrive_radius", 0.5);
   }
@@ -48,8 +48,8 @@ static void parse_agent_fields(const JsonReader& r, GroupDef& g) {
   g.desired_speed = r.in_range("desired_speed", 0, 12, 1.3);
   if (r.has("body_radius")) g.body_radius = r.in_range("body_radius", 0.05, 0.5, std::nullopt);
   if (r.has("comfort_distance")) g.comfort_distance = r.in_range("comfort_distance", 0.01, 2, std::nullopt);
-  g.behaviour = r.has("behaviour") ? parse_behaviour(r.at("behaviour")) : BehaviourDef{};
-  if (!r.has("behaviour")) g.behaviour.kind = BehaviourDef::Kind::Goal, g.behaviour.target = "nearest_exit",
+  g.behaviour = r.has("behaviour") ? parse_behaviour(r.at("behaviour")) : Behaviour{};
+  if (!r.has("behaviour")) g.behaviour.kind = Behaviour::Kind::Goal, g.behaviour.target = "nearest_exit",
                            g.behaviour.path = r.child_path("behaviour");
 }
 
@@ -171,10 +171,10 @@ ScenarioDef ScenarioDef::parse(const json& j, const std::string& source, const s
       r.fail_at("geometry.exits[" + std::to_string(i) + "]", "lies outside the domain (exits must be inside domain.min..max)");
   }
 
-  auto check_target = [&](const BehaviourDef& b) {
-    if (b.kind == BehaviourDef::Kind::Orbit && !b.target.empty() && !s.geo.find_target(b.target))
+  auto check_target = [&](const Behaviour& b) {
+    if (b.kind == Behaviour::Kind::Orbit && !b.target.empty() && !s.geo.find_target(b.target))
       throw Error(b.path + ".around: no exit or goal with id \"" + b.target + "\"");
-    if (b.kind != BehaviourDef::Kind::Goal) return;
+    if (b.kind != Behaviour::Kind::Goal) return;
     if (b.target == "nearest_exit") {
       if (s.geo.exits.empty()) throw Error(b.path + ": behaviour goal \"nearest_exit\" needs at least one exit in geometry.exits");
     } else if (!s.geo.find_target(b.target)) {
@@ -235,35 +235,11 @@ ScenarioDef ScenarioDef::parse(const json& j, const std::string& source, const s
     for (size_t k = 0; k < i; ++k)
       if (s.groups[i].id == s.groups[k].id) throw Error(s.groups[i].path + ".id: duplicate group/source id \"" + s.groups[i].id + "\"");
 
-  if (auto forces = r.get("forces"))
-    for (size_t i = 0; i < forces->size(); ++i) {
-      auto fr = forces->item(i);
-      fr.require_object();
-      ForceDef f;
-      std::string type = fr.one_of("type", {"uniform", "radial", "vortex"}, std::nullopt);
-      if (type == "uniform") {
-        fr.allow_only({"type", "acceleration", "groups"});
-        f.kind = ForceDef::Kind::Uniform;
-        f.acceleration = fr.vec2("acceleration", std::nullopt);
-        if (f.acceleration.norm() > 50) fr.fail_at("acceleration", "is above 50 m/s^2; check the units (m/s^2)");
-      } else {
-        fr.allow_only({"type", "center", "strength", "range", "groups"});
-        f.kind = type == "radial" ? ForceDef::Kind::Radial : ForceDef::Kind::Vortex;
-        f.center = fr.vec2("center", std::nullopt);
-        f.strength = fr.in_range("strength", -50, 50, std::nullopt);
-        f.range = fr.positive("range", 1e300);
-      }
-      if (auto gl = fr.get("groups"))
-        for (size_t k = 0; k < gl->size(); ++k) {
-          std::string id = gl->item(k).as_string();
-          int found = -1;
-          for (size_t q = 0; q < s.groups.size(); ++q)
-            if (s.groups[q].id == id) found = static_cast<int>(q);
-          if (found < 0) gl->item(k).fail("no group or source with id \"" + id + "\"");
-          f.groups.push_back(found);
-        }
-      s.forces.push_back(f);
-    }
+  if (auto forces = r.get("forces")) {
+    std::vector<std::string> group_ids;
+    for (const auto& g : s.groups) group_ids.push_back(g.id);
+    for (size_t i = 0; i < forces->size(); ++i) s.terms.push_back(Term::parse(forces->item(i), group_ids));
+  }
 
   if (auto areas = r.get("measurement_areas"))
     for (size_t i = 0; i < areas->size(); ++i) {

@@ -8,18 +8,11 @@
 #include <vector>
 
 #include "engine/geometry/geometry.hpp"
+#include "engine/sim/behaviour.hpp"
 #include "engine/sim/model.hpp"
+#include "engine/sim/terms.hpp"
 
 namespace crowdmpm {
-
-struct BehaviourDef {
-  enum class Kind { None, Goal, Orbit, Attract };
-  Kind kind = Kind::None;
-  std::string target;  // Goal: exit or goal id, or "nearest_exit"; Orbit: structure to circle (or empty)
-  Vec2 point = Vec2::Zero();
-  double sign = 1, inward = 0, arrive_radius = 0.5;
-  std::string path;  // JSON path, for messages
-};
 
 // A group of people placed at t = 0, or a source spawning them at a rate over a time window.
 struct GroupDef {
@@ -34,15 +27,7 @@ struct GroupDef {
   Vec2 velocity = Vec2::Zero();
   double desired_speed = 1.3;
   std::optional<double> body_radius, comfort_distance;  // default: the model's
-  BehaviourDef behaviour;
-};
-
-struct ForceDef {
-  enum class Kind { Uniform, Radial, Vortex };
-  Kind kind = Kind::Uniform;
-  Vec2 acceleration = Vec2::Zero(), center = Vec2::Zero();
-  double strength = 0, range = 1e300;
-  std::vector<int> groups;  // group indices; empty: all
+  Behaviour behaviour;
 };
 
 struct MeasurementArea {
@@ -70,7 +55,7 @@ struct ScenarioDef {
   bool stop_when_empty = true;
   std::optional<Model> model;  // null: the built-in default
   std::vector<GroupDef> groups;
-  std::vector<ForceDef> forces;
+  std::vector<Term> terms;  // "forces": the venue's force terms (sim/terms.hpp)
   std::vector<MeasurementArea> areas;
   OutputsDef outputs;
 

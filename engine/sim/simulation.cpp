@@ -56,20 +56,6 @@ Simulation::Simulation(const ScenarioDef& scenario, const Model& model, int thre
   max_radius_ = max_r;
   max_comfort_ = max_c;
   init_neighbours(2 * max_r + interaction_margin(model_, max_c));
-  for (const auto& f : scenario_.forces) {
-    BodyForce b;
-    b.kind = f.kind == ForceDef::Kind::Uniform ? BodyForce::Kind::Uniform
-             : f.kind == ForceDef::Kind::Radial ? BodyForce::Kind::Radial : BodyForce::Kind::Vortex;
-    b.acceleration = f.acceleration;
-    b.center = f.center;
-    b.strength = f.strength;
-    b.range = f.range;
-    if (!f.groups.empty()) {
-      b.applies_to.assign(scenario_.groups.size(), 0);
-      for (int gi : f.groups) b.applies_to[gi] = 1;
-    }
-    forces_.push_back(b);
-  }
   size_t capacity = 0;
   source_accum_.assign(scenario_.groups.size(), 0);
   source_spawned_.assign(scenario_.groups.size(), 0);
@@ -83,6 +69,24 @@ Simulation::Simulation(const ScenarioDef& scenario, const Model& model, int thre
     throw Error(scenario_.source + ": " + e.what());
   }
   spawn_sources();
+  prepare_derived();
+}
+
+void Simulation::set_model(const Model& m) {
+  if (m.material != model_.material)
+    throw Error(std::string("the material of a world is fixed (") + material_name(model_.material) + ")");
+  for (const auto& info : param_table())
+    if (info.sets_up_world && m.params.*info.field != model_.params.*info.field)
+      throw Error(std::string(info.name) + " is fixed once a world exists (it sizes and places agents, or shapes navigation)");
+  check_time_step(scenario_, m, scenario_.dt);
+  if (m.has_traction())
+    for (size_t p = 0; p < world_.size(); ++p)
+      if (m.params.contact_epsilon >= world_.comfort[p])
+        throw Error("contact_epsilon " + format_number(m.params.contact_epsilon) +
+                    " m must be smaller than every agent's comfort distance (agent " + std::to_string(world_.id[p]) +
+                    ": " + format_number(world_.comfort[p]) + " m)");
+  model_ = m;
+  init_neighbours(2 * max_radius_ + interaction_margin(model_, max_comfort_));
   prepare_derived();
 }
 
@@ -110,40 +114,34 @@ int Simulation::nav_for(const std::string& target) {
 Behaviour Simulation::goal_behaviour(const std::string& target) {
   Behaviour b;
   b.kind = Behaviour::Kind::Goal;
-  b.nav = nav_for(target);
-  const NamedShape* t = target == "nearest_exit" ? nullptr : scenario_.geo.find_target(target);
-  bool is_exit = false;
-  for (const auto& e : scenario_.geo.exits) is_exit = is_exit || &e == t;
-  b.target = (t && !is_exit) ? &t->shape : nullptr;
+  b.target = target;
+  resolve(b);
   return b;
 }
 
-// Behaviour 0 is "none"; group g (groups, then sources) has behaviour g + 1. Behaviours refer to
-// navigation fields by index, so adding fields later (behaviour_for_target) is safe.
+// Navigation field and goal region of a behaviour.
+void Simulation::resolve(Behaviour& b) {
+  if (b.kind == Behaviour::Kind::Goal) {
+    b.nav = nav_for(b.target);
+    const NamedShape* t = b.target == "nearest_exit" ? nullptr : scenario_.geo.find_target(b.target);
+    bool is_exit = false;
+    for (const auto& e : scenario_.geo.exits) is_exit = is_exit || &e == t;
+    b.goal = (t && !is_exit) ? &t->shape : nullptr;
+  } else if (b.kind == Behaviour::Kind::Orbit && !b.target.empty()) {
+    b.nav = nav_for(b.target);
+  }
+}
+
+// Behaviour 0 is "none"; then each group's (groups, then sources: behaviour_of_group). Behaviours
+// refer to navigation fields by index, so adding fields later (behaviour_for_target) is safe.
 void Simulation::build_behaviours() {
   behaviours_.push_back(Behaviour{});
   for (const auto& g : scenario_.groups) {
-    Behaviour b;
-    const BehaviourDef& d = g.behaviour;
+    Behaviour b = g.behaviour;
     try {
-      switch (d.kind) {
-        case BehaviourDef::Kind::None: b.kind = Behaviour::Kind::None; break;
-        case BehaviourDef::Kind::Goal: b = goal_behaviour(d.target); break;
-        case BehaviourDef::Kind::Orbit:
-          b.kind = Behaviour::Kind::Orbit;
-          if (!d.target.empty()) b.nav = nav_for(d.target);
-          b.point = d.point;
-          b.sign = d.sign;
-          b.inward = d.inward;
-          break;
-        case BehaviourDef::Kind::Attract:
-          b.kind = Behaviour::Kind::Attract;
-          b.point = d.point;
-          b.arrive_radius = d.arrive_radius;
-          break;
-      }
+      resolve(b);
     } catch (const Error& e) {
-      throw Error(d.path + (d.kind == BehaviourDef::Kind::Orbit ? ".around: " : ".target: ") + e.what());
+      throw Error(b.path + (b.kind == Behaviour::Kind::Orbit ? ".around: " : ".target: ") + e.what());
     }
     group_behaviour_.push_back(static_cast<int>(behaviours_.size()));
     behaviours_.push_back(b);
@@ -168,7 +166,7 @@ AgentDef Simulation::agent_template(const GroupDef& g, int gi) const {
   d.body_radius = g.body_radius.value_or(model_.params.body_radius);
   d.comfort_distance = g.comfort_distance.value_or(model_.params.comfort_distance);
   d.desired_speed = g.desired_speed;
-  d.behaviour = group_behaviour_[gi];
+  d.behaviour = behaviour_of_group(gi);
   d.group = gi;
   return d;
 }
@@ -334,7 +332,7 @@ void Simulation::init_neighbours(double reach) {
 }
 
 void Simulation::prepare_derived() {
-  StepInputs in{model_, scenario_.geo, navs_, behaviours_, forces_, scenario_.dt};
+  StepInputs in = step_inputs();
   kernel_drive(in, world_, pool_);
   neighbours_.build(world_, pool_);
   if (!model_.is_continuum()) {
@@ -350,8 +348,8 @@ const char* const StepProfile::kNames[StepProfile::kParts] = {"drive", "neighbou
 
 void Simulation::step() {
   if (failed_)
-    throw Error("the simulation became unstable at t = " + format_number(time()) + " s and cannot be stepped further");
-  StepInputs in{model_, scenario_.geo, navs_, behaviours_, forces_, scenario_.dt};
+    throw UnstableError("the simulation became unstable at t = " + format_number(time()) + " s and cannot be stepped further");
+  StepInputs in = step_inputs();
   using clock = std::chrono::steady_clock;
   auto t = profiling_ ? clock::now() : clock::time_point();
   int part = 0;
@@ -451,7 +449,7 @@ void Simulation::check_finite() {
   size_t p = *std::min_element(first.begin(), first.end());
   if (p < world_.size()) {
     failed_ = true;
-    throw Error("simulation became unstable at t = " + format_number(time()) + " s: agent " +
+    throw UnstableError("simulation became unstable at t = " + format_number(time()) + " s: agent " +
                 std::to_string(world_.id[p]) + " has a non-finite position or velocity (reduce time.dt or the material stiffness E)");
   }
 }

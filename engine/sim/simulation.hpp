@@ -68,7 +68,11 @@ class Simulation {
   }
   const ScenarioDef& scenario() const { return scenario_; }
   const Model& model() const { return model_; }
-  Model& mutable_model() { return model_; }
+  // Replaces the model of a running world as if the world had been built with it: the material
+  // kind and the parameters that set up the world (ParamInfo::sets_up_world) must stay as they
+  // are; the time step, the contact epsilon against the agents' comfort distances, the
+  // neighbour reach and the reported pressure are checked and derived again. Throws Error.
+  void set_model(const Model& m);
   World& world() { return world_; }
   const World& world() const { return world_; }
   const Grid& grid() const { return grid_; }
@@ -85,14 +89,17 @@ class Simulation {
   // Whether an agent may stand at p: inside the domain and outside every solid.
   bool geo_ok(const Vec2& p) const { return scenario_.geo.sdf(p) >= 0; }
   const std::vector<Behaviour>& behaviours() const { return behaviours_; }
+  // The behaviour of the scenario's group (or source) g, by index into groups.
+  int behaviour_of_group(int g) const { return group_behaviour_.at(static_cast<size_t>(g)); }
   // The inputs the kernels see (for the adjoint passes); valid while the simulation lives.
-  StepInputs step_inputs() const { return StepInputs{model_, scenario_.geo, navs_, behaviours_, forces_, scenario_.dt}; }
+  StepInputs step_inputs() const { return StepInputs{model_, scenario_.geo, navs_, behaviours_, scenario_.terms, scenario_.dt, time()}; }
   const NeighbourGrid& neighbour_grid() const { return neighbours_; }
   int behaviour_for_target(const std::string& target);  // goal behaviour to an exit/goal id
 
  private:
   void build_behaviours();
   Behaviour goal_behaviour(const std::string& target);
+  void resolve(Behaviour& b);
   int nav_for(const std::string& target);
   void place_group(size_t gi);
   void spawn_sources();
@@ -113,7 +120,6 @@ class Simulation {
   std::vector<std::string> nav_targets_;
   std::vector<Behaviour> behaviours_;
   std::vector<int> group_behaviour_;
-  std::vector<BodyForce> forces_;
   std::vector<ExitEvent> exit_events_;
   std::vector<double> source_accum_;
   std::vector<long> source_spawned_;

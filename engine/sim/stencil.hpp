@@ -3,6 +3,7 @@
 // node of its 3x3 stencil and 3 weights per axis (the same for P2G, G2P and output fields).
 #include <algorithm>
 #include <cmath>
+#include <cstddef>
 
 #include "engine/core/vec.hpp"
 
@@ -42,6 +43,24 @@ inline void stencil_weight_gradients(const Stencil& s, double dx, double dwx[3],
   dwy[2] = (s.fy - 0.5) * inv;
 }
 
+// One node of a particle's 3x3 stencil: its index (row-major, nx columns), its weight w, its
+// offset from the particle x_i - x_p (m) and its place (a, b) in the stencil.
+struct StencilNode {
+  size_t k;
+  double w;
+  Vec2 dpos;
+  int a, b;
+};
+
+// Calls fn(node) for the 9 nodes of stencil s on a grid of nx columns and spacing dx, rows
+// outer: the one 3x3 loop of every transfer (P2G, G2P, output fields and their adjoints).
+template <class F>
+inline void for_each_stencil_node(const Stencil& s, int nx, double dx, F&& fn) {
+  for (int b = 0; b < 3; ++b)
+    for (int a = 0; a < 3; ++a)
+      fn(StencilNode{static_cast<size_t>((s.by + b) * nx + (s.bx + a)), s.wx[a] * s.wy[b], dx * Vec2(a - s.fx, b - s.fy), a, b});
+}
+
 // Calls fn(node, w, dw/dx) for the 9 nodes of x's stencil; nothing for a point whose stencil
 // does not fit on the grid (make_stencil would clamp it, and its weights mean nothing there).
 template <class F>
@@ -51,11 +70,9 @@ inline void for_stencil_on_grid(const Vec2& origin, double dx, int nx, int ny, c
   const Stencil s = make_stencil(origin, dx, nx, ny, x);
   double dwx[3], dwy[3];
   stencil_weight_gradients(s, dx, dwx, dwy);
-  for (int j = 0; j < 3; ++j)
-    for (int i = 0; i < 3; ++i) {
-      const int node = (s.by + j) * nx + (s.bx + i);
-      fn(static_cast<size_t>(node), s.wx[i] * s.wy[j], Vec2(dwx[i] * s.wy[j], s.wx[i] * dwy[j]));
-    }
+  for_each_stencil_node(s, nx, dx, [&](const StencilNode& n) {
+    fn(n.k, n.w, Vec2(dwx[n.a] * s.wy[n.b], s.wx[n.a] * dwy[n.b]));
+  });
 }
 
 }  // namespace crowdmpm

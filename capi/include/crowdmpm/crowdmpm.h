@@ -148,11 +148,14 @@ CMPM_API cmpm_Status cmpm_World_GetAgentState(cmpm_WorldId world, cmpm_AgentId a
                                               double* out_vx, double* out_vy);
 
 /* Material parameters by name (see docs/model-format.md: E, gamma, tension_scale, tau, ...),
- * range-checked. body_radius, comfort_distance, rest_density and mass are fixed once a world
- * exists (they size agents and the grid): setting them is CMPM_ERROR_INVALID_ARGUMENT. */
+ * range-checked. Setting one gives the same run as loading the model with that value (the
+ * world's derived state, such as its neighbour search reach, follows). The parameters that set
+ * up a world (docs/model-format.md, column "World": body_radius, comfort_distance, rest_density,
+ * mass, wall_clearance) are fixed once it exists: setting them is CMPM_ERROR_INVALID_ARGUMENT,
+ * as is a max_speed too large for the time step. */
 CMPM_API cmpm_Status cmpm_World_GetParameter(cmpm_WorldId world, const char* name, double* out_value);
 CMPM_API cmpm_Status cmpm_World_SetParameter(cmpm_WorldId world, const char* name, double value);
-/* Replace the traction network from JSON: {"layers": [...]} or {"constant": K}. */
+/* Replace the traction network from JSON: {"layers": [...]} or {"constant": K} (crowd material). */
 CMPM_API cmpm_Status cmpm_World_LoadTraction(cmpm_WorldId world, const char* traction_json);
 
 /* Learning (docs/learning.md): fits a model to recorded trajectories by gradient descent
