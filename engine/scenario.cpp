@@ -147,17 +147,7 @@ ScenarioDef ScenarioDef::parse(const json& j, const std::string& source, const s
     g->require_object();
     g->allow_only({"walls", "obstacles", "exits"});
     if (auto walls = g->get("walls"))
-      for (size_t i = 0; i < walls->size(); ++i) {
-        auto w = walls->item(i);
-        w.require_object();
-        w.allow_only({"id", "points", "thickness", "closed"});
-        auto pts = w.at("points").as_points(2);
-        if (w.boolean("closed", false)) pts.push_back(pts.front());
-        for (size_t k = 0; k + 1 < pts.size(); ++k)
-          if ((pts[k + 1] - pts[k]).norm() < 1e-9)
-            w.at("points").item(k + 1).fail("repeats the previous point (zero-length wall segment)");
-        s.geo.solids.push_back(Shape::polyline(pts, w.in_range("thickness", 0.01, 10, 0.2)));
-      }
+      for (size_t i = 0; i < walls->size(); ++i) s.geo.solids.push_back(parse_wall(walls->item(i)));
     if (auto obs = g->get("obstacles"))
       for (size_t i = 0; i < obs->size(); ++i) s.geo.solids.push_back(parse_region(obs->item(i), {"id"}));
     if (auto ex = g->get("exits")) s.geo.exits = parse_named_shapes(*ex, "exit");
