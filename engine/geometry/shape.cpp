@@ -157,4 +157,72 @@ Shape parse_region(const JsonReader& r, const std::vector<std::string>& other_ke
   return s;
 }
 
+// cos and sin of an angle in degrees, exact at multiples of 90 degrees, so that an arc ending
+// there meets a straight wall drawn to the same point without a sliver of a gap.
+static Vec2 unit_vector_deg(double deg) {
+  double a = std::fmod(deg, 360.0);
+  if (a < 0) a += 360;
+  if (a == 0) return Vec2(1, 0);
+  if (a == 90) return Vec2(0, 1);
+  if (a == 180) return Vec2(-1, 0);
+  if (a == 270) return Vec2(0, -1);
+  const double rad = deg * M_PI / 180;
+  return Vec2(std::cos(rad), std::sin(rad));
+}
+
+// Chords of an arc lie inside the circle by r (1 - cos(step / 2)); this tolerance keeps a wall
+// drawn as an arc within a centimetre of the circle, finer than any body radius.
+constexpr double kArcTolerance = 0.01;  // m
+constexpr int kArcMaxSegments = 1000;   // every segment costs a distance per agent and step
+
+static std::vector<Vec2> parse_arc(const JsonReader& r) {
+  r.require_object();
+  r.allow_only({"center", "radius", "from", "to", "segments"});
+  const Vec2 c = r.vec2("center", std::nullopt);
+  const double radius = r.positive("radius", std::nullopt);
+  const double from = r.number("from", std::nullopt), to = r.number("to", std::nullopt);
+  const double sweep = std::abs(to - from);
+  if (sweep == 0) r.fail_at("to", "must differ from \"from\" (" + format_number(from) + " degrees): the arc has no length");
+  if (sweep > 360)
+    r.fail_at("to", "must be within 360 degrees of \"from\", got a sweep of " + format_number(sweep) + " degrees");
+  int n;
+  if (r.has("segments")) {
+    n = r.integer("segments", 1, kArcMaxSegments, std::nullopt);
+  } else {
+    const double step = 2 * std::acos(std::clamp(1 - kArcTolerance / radius, -1.0, 1.0));  // radians
+    // At most 45 degrees a segment, so that even a small arc still looks round.
+    const double fewest = std::max(std::ceil(sweep / 45), std::ceil(sweep * M_PI / 180 / step));
+    n = static_cast<int>(std::min<double>(fewest, kArcMaxSegments));
+  }
+  if (2 * radius * std::sin(sweep * M_PI / 360 / n) < 1e-9)
+    r.fail("is too small: its segments would be shorter than 1e-9 m");
+  std::vector<Vec2> pts;
+  // The last point is computed from "to" itself, so the arc ends exactly where it was asked to.
+  for (int k = 0; k <= n; ++k) pts.push_back(c + radius * unit_vector_deg(k == n ? to : from + (to - from) * k / n));
+  return pts;
+}
+
+Shape parse_wall(const JsonReader& r) {
+  r.require_object();
+  if (r.has("points") == r.has("arc")) r.fail("needs exactly one of \"points\" (a polyline) or \"arc\"");
+  std::vector<Vec2> pts;
+  if (r.has("arc")) {
+    // An arc is open, or a whole circle when it sweeps 360 degrees: "closed" does not apply.
+    r.allow_only({"id", "arc", "thickness"});
+    pts = parse_arc(r.at("arc"));
+  } else {
+    r.allow_only({"id", "points", "thickness", "closed"});
+    auto points = r.at("points");
+    pts = points.as_points(2);
+    if (r.boolean("closed", false)) pts.push_back(pts.front());
+    for (size_t k = 0; k + 1 < pts.size(); ++k) {
+      if ((pts[k + 1] - pts[k]).norm() >= 1e-9) continue;
+      if (k + 1 == points.size())  // the point "closed" appended
+        r.fail_at("closed", "the last point already equals the first (zero-length wall segment): leave it out");
+      points.item(k + 1).fail("repeats the previous point (zero-length wall segment)");
+    }
+  }
+  return Shape::polyline(pts, r.in_range("thickness", 0.01, 10, 0.2));
+}
+
 }  // namespace crowdmpm

@@ -32,6 +32,11 @@ struct Shape {
 // shapes and reports the JSON path otherwise. Extra keys allowed by the caller are passed in.
 Shape parse_region(const JsonReader& r, const std::vector<std::string>& other_keys);
 
+// A wall is a thick polyline: {"points": [[x, y], ...], "closed": b, "thickness": t} or
+// {"arc": {"center": [x, y], "radius": r, "from": deg, "to": deg, "segments": n}, "thickness": t},
+// both with an optional "id" (docs/scenario-format.md#geometry).
+Shape parse_wall(const JsonReader& r);
+
 double segment_distance(const Vec2& p, const Vec2& a, const Vec2& b);
 
 }  // namespace crowdmpm

@@ -1,6 +1,7 @@
 #include "engine/sim/scenario.hpp"
 
 #include <cmath>
+#include <filesystem>
 
 namespace crowdmpm {
 
@@ -146,17 +147,7 @@ ScenarioDef ScenarioDef::parse(const json& j, const std::string& source, const s
     g->require_object();
     g->allow_only({"walls", "obstacles", "exits"});
     if (auto walls = g->get("walls"))
-      for (size_t i = 0; i < walls->size(); ++i) {
-        auto w = walls->item(i);
-        w.require_object();
-        w.allow_only({"id", "points", "thickness", "closed"});
-        auto pts = w.at("points").as_points(2);
-        if (w.boolean("closed", false)) pts.push_back(pts.front());
-        for (size_t k = 0; k + 1 < pts.size(); ++k)
-          if ((pts[k + 1] - pts[k]).norm() < 1e-9)
-            w.at("points").item(k + 1).fail("repeats the previous point (zero-length wall segment)");
-        s.geo.solids.push_back(Shape::polyline(pts, w.in_range("thickness", 0.01, 10, 0.2)));
-      }
+      for (size_t i = 0; i < walls->size(); ++i) s.geo.solids.push_back(parse_wall(walls->item(i)));
     if (auto obs = g->get("obstacles"))
       for (size_t i = 0; i < obs->size(); ++i) s.geo.solids.push_back(parse_region(obs->item(i), {"id"}));
     if (auto ex = g->get("exits")) s.geo.exits = parse_named_shapes(*ex, "exit");
@@ -271,18 +262,109 @@ ScenarioDef ScenarioDef::parse(const json& j, const std::string& source, const s
   return s;
 }
 
+// ---------------------------------------------------------------------------------------------
+// "extends": a scenario written as changes to another (docs/scenario-format.md#extends).
+
+namespace fs = std::filesystem;
+
+namespace {
+
+// Deep enough for a variant of a variant of a base, short enough that a mistake is reported
+// rather than followed.
+constexpr size_t kMaxExtendsChain = 16;
+
+struct ChainFile {
+  std::string name;  // as shown in messages
+  std::string key;   // canonical path, to find a cycle however the path was spelled; "" for text
+};
+
+ChainFile chain_file(const std::string& path, const std::string& name) {
+  std::error_code ec;
+  fs::path canonical = fs::weakly_canonical(path, ec);
+  return {name, ec ? path : canonical.string()};
+}
+
+// A scenario JSON with its "extends" chain applied. `chain` lists the files from the one the
+// user named down to the one `j` came from (its last entry), whose folder is `dir`.
+json apply_extends(json j, const std::string& dir, std::vector<ChainFile>& chain) {
+  if (!j.is_object() || !j.contains("extends")) return j;
+  const std::string here = chain.back().name;
+  auto fail = [&](const std::string& reason) { throw Error(here + ": extends: " + reason); };
+  if (!j["extends"].is_string()) fail("must be a string: the file name of the base scenario, relative to this file's folder");
+  const std::string rel = j["extends"].get<std::string>();
+  const std::string path = resolve(dir, rel);
+  const ChainFile base_file = chain_file(path, fs::path(path).lexically_normal().string());
+  for (const auto& f : chain)
+    if (f.key == base_file.key) {
+      std::string cycle;
+      for (const auto& g : chain) cycle += g.name + " -> ";
+      fail("cycle " + cycle + base_file.name);
+    }
+  if (chain.size() >= kMaxExtendsChain)
+    fail("more than " + std::to_string(kMaxExtendsChain) + " files extend one another; the chain starts at " + chain.front().name);
+  std::string text;
+  try {
+    text = read_text_file(path);
+  } catch (const Error& e) {
+    fail("cannot read '" + rel + "' (" + e.what() + ")");
+  }
+  json base = parse_json_text(text, base_file.name);
+  if (!base.is_object()) fail("'" + rel + "' must hold a JSON object (a scenario)");
+  chain.push_back(base_file);
+  base = apply_extends(std::move(base), dir_of(path), chain);
+  // A relative model path is relative to the file that names it: seen from this file, a model
+  // named by the base lies in the base's folder.
+  const std::string base_folder = fs::path(rel).parent_path().string();
+  auto model = base.find("model");
+  if (!base_folder.empty() && model != base.end() && model->is_string()) {
+    const std::string m = model->get<std::string>();
+    if (m != "default" && !m.empty() && m[0] != '/') *model = base_folder + "/" + m;
+  }
+  j.erase("extends");
+  base.merge_patch(j);  // RFC 7396: objects merge, anything else replaces, null deletes
+  return base;
+}
+
+// What parse() validates, and the files it extends for messages (" (extends a.json, b.json)"
+// or empty), since a JSON path in the merged scenario may point into any of them.
+struct MergedScenario {
+  json j;
+  std::string bases;
+};
+
+MergedScenario merge_chain(json j, const std::string& dir, std::vector<ChainFile> chain) {
+  MergedScenario m{apply_extends(std::move(j), dir, chain), ""};
+  for (size_t i = 1; i < chain.size(); ++i) m.bases += (i == 1 ? " (extends " : ", ") + chain[i].name;
+  if (chain.size() > 1) m.bases += ")";
+  return m;
+}
+
+MergedScenario merge_file(const std::string& path) {
+  return merge_chain(load_json_file(path), dir_of(path), {chain_file(path, path)});
+}
+
+}  // namespace
+
 ScenarioDef ScenarioDef::parse_text(const std::string& text, const std::string& base_dir) {
-  return parse(parse_json_text(text, "<scenario>"), "<scenario>", base_dir);
+  MergedScenario m = merge_chain(parse_json_text(text, "<scenario>"), base_dir, {{"<scenario>", ""}});
+  try {
+    return parse(m.j, "<scenario>", base_dir);
+  } catch (const Error& e) {
+    if (m.bases.empty()) throw;  // text that extends nothing: the JSON path says it all
+    throw Error("<scenario>" + m.bases + ": " + e.what());
+  }
 }
 
 ScenarioDef ScenarioDef::load(const std::string& path) {
-  json j = load_json_file(path);
+  MergedScenario m = merge_file(path);
   try {
-    return parse(j, path, dir_of(path));
+    return parse(m.j, path, dir_of(path));
   } catch (const Error& e) {
-    throw Error(path + ": " + e.what());
+    throw Error(path + m.bases + ": " + e.what());
   }
 }
+
+json ScenarioDef::load_json(const std::string& path) { return merge_file(path).j; }
 
 int ScenarioDef::steps_per_frame() const { return static_cast<int>(std::lround(1.0 / (output_rate * dt))); }
 

@@ -70,6 +70,7 @@ typedef enum cmpm_Field {
 
 /* World definition. Give the scenario as JSON text or as a file path (one of them), and
  * optionally a model as JSON text or path (otherwise the scenario's model, else the default).
+ * File names inside scenario_json ("model", "extends") are relative to the working directory.
  * Strings are copied during cmpm_CreateWorld; the caller keeps ownership. */
 typedef struct cmpm_WorldDef {
   const char* scenario_json;
