@@ -23,6 +23,12 @@ const TermLaw* find_term_law(const std::string& type) {
   return nullptr;
 }
 
+std::vector<TermField> centred_fields(const char* strength_meaning) {
+  return {{"center", 2, "m", -1e9, 1e9, kRequired, true, "the centre"},
+          {"strength", 1, "m/s^2", -50, 50, kRequired, true, strength_meaning},
+          {"range", 1, "m", 1e-9, 1e300, 1e300, false, "no acceleration farther than this"}};
+}
+
 size_t TermLaw::parameter_count() const {
   size_t n = 0;
   for (const auto& f : fields()) n += static_cast<size_t>(f.dims);
@@ -92,14 +98,14 @@ Term Term::parse(const JsonReader& r, const std::vector<std::string>& group_ids)
     const size_t colon = bad.find(':');
     r.fail_at(bad.substr(0, colon), bad.substr(colon + 2));
   }
-  size_t k = 0;
+  size_t first = 0;  // of each field's parameters
   for (const auto& f : t.law->fields()) {
     if (f.dims == 2)
-      for (int c = 0; c < 2; ++c)
-        if (!(t.params[k + static_cast<size_t>(c)] >= f.lo && t.params[k + static_cast<size_t>(c)] <= f.hi))
+      for (size_t c = first; c < first + 2; ++c)
+        if (!(t.params[c] >= f.lo && t.params[c] <= f.hi))
           r.fail_at(f.key, std::string("components must be in [") + format_number(f.lo) + ", " + format_number(f.hi) +
-                               "] " + f.unit + ", got " + format_number(t.params[k + static_cast<size_t>(c)]));
-    k += static_cast<size_t>(f.dims);
+                               "] " + f.unit + ", got " + format_number(t.params[c]));
+    first += static_cast<size_t>(f.dims);
   }
   t.learn.assign(t.params.size(), 0);
   if (auto lr = r.get("learn")) {

@@ -148,6 +148,18 @@ class TermFormula : public TermLaw {
   }
 };
 
+// Laws that act around a point within a range (radial, vortex): their fields, and the offset
+// r = x - center and distance d = |r| where they act (1e-9 < d <= range; the hard cutoff at the
+// range makes it not learnable).
+std::vector<TermField> centred_fields(const char* strength_meaning);
+template <class T>
+bool centred_offset(const T* p, const T x[2], T& rx, T& ry, T& d) {
+  rx = x[0] - p[0];
+  ry = x[1] - p[1];
+  d = sqrt(rx * rx + ry * ry);
+  return value_of(d) >= 1e-9 && value_of(d) <= value_of(p[3]);
+}
+
 // Every law the engine knows, by type name.
 const std::vector<const TermLaw*>& term_laws();
 const TermLaw* find_term_law(const std::string& type);  // nullptr if unknown
