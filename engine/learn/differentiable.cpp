@@ -10,9 +10,10 @@ struct Stored {
   std::vector<Mat2> C;
   std::vector<double> J;
   std::vector<Vec2> accel, force, heading_used;
+  std::vector<double> free_speed;  // the drive's u (for the headway adaptation's adjoint)
 };
 
-Stored store(const World& w) { return Stored{w.x, w.v, w.heading, w.C, w.J, {}, {}, {}}; }
+Stored store(const World& w) { return Stored{w.x, w.v, w.heading, w.C, w.J, {}, {}, {}, {}}; }
 
 // The state a step starts from (x, v, C, J) with the given heading.
 void restore_state(World& w, const Stored& s, const std::vector<Vec2>& heading) {
@@ -31,6 +32,7 @@ void restore(World& w, const Stored& s) {
   restore_state(w, s, s.heading_used);
   w.accel = s.accel;
   w.pair_force = s.force;
+  w.free_speed = s.free_speed;
 }
 
 // Central-difference Jacobian of a pointwise map R^4 -> R^4 (the projection, the drive): these
@@ -57,7 +59,7 @@ Eigen::Matrix4d local_jacobian(F&& f, const Eigen::Vector4d& at) {
 // behaviour's navigation field, a pointwise function whose Jacobian is taken by central
 // differences (DESIGN.md section 4 allows local Jacobians of pointwise functions).
 void drive_adjoint(const StepInputs& in, const Behaviour& beh, const World& w, size_t p, const Vec2& heading_prev,
-                   const Vec2& a_bar, const Vec2& h_bar, Vec2& x_bar, Vec2& v_bar, ModelGradient& out) {
+                   const Vec2& a_bar, const Vec2& h_bar, double u_bar_later, Vec2& x_bar, Vec2& v_bar, ModelGradient& out) {
   const MaterialParams& P = in.model.params;
   const Vec2 x = w.x[p], v = w.v[p];
   const TermPoint pt{x, v, heading_prev, w.group[p], in.time};
@@ -76,12 +78,15 @@ void drive_adjoint(const StepInputs& in, const Behaviour& beh, const World& w, s
   Vec2 e_bar = h_bar.squaredNorm() > 0 && e.squaredNorm() > 0 ? h_bar : Vec2::Zero();
   double f_bar = 0;
   if (driven) {
+    // a = (u e - v) / tau with the free speed u = s v0 f, which the headway adaptation also
+    // reads (u_bar_later).
     const Vec2 a_drive = (speed * f * e - v) / P.tau;
     e_bar += a_bar * (speed * f / P.tau);
-    f_bar = a_bar.dot(speed * e) / P.tau;
+    const double u_bar = a_bar.dot(e) / P.tau + (e.squaredNorm() > 0 ? u_bar_later : 0.0);
+    f_bar = u_bar * speed;
     v_bar -= a_bar / P.tau;
     out.params.tau += a_bar.dot(-a_drive / P.tau);
-    out.params.v0_scale += a_bar.dot(w.v0[p] * f * e / P.tau);
+    out.params.v0_scale += u_bar * w.v0[p] * f;
   }
   if (e_bar.squaredNorm() > 0) {
     const double h = 1e-7;
@@ -104,6 +109,37 @@ void drive_adjoint(const StepInputs& in, const Behaviour& beh, const World& w, s
     for (size_t u = 0; u < in.terms.size(); ++u)
       if (u != t) others *= f_own[u];
     term.law->vjp(term.params.data(), pt, a_bar, f_bar * others, x_bar, v_bar, out.terms[t].data());
+  }
+}
+
+// Adjoint of kernel_headway at the stored state w (heading = e, free_speed = u): where the
+// speed was capped, a_p += (V - u) e / tau with V = max(0, s / T) and
+// s = (x_q - x_p) . e - r_p - r_q. Adds dL/dx of p and q, dL/de_p, dL/du_p, and tau's and T's
+// gradients.
+void headway_adjoint(const StepInputs& in, const NeighbourGrid& nb, const World& w, const std::vector<Vec2>& a_bar,
+                     std::vector<Vec2>& x_bar, std::vector<Vec2>& e_bar, std::vector<double>& u_bar, ModelGradient& out) {
+  const MaterialParams& P = in.model.params;
+  if (!(P.time_gap > 0)) return;
+  for (size_t p = 0; p < w.size(); ++p) {
+    const double u = w.free_speed[p];
+    if (!(u > 0)) continue;
+    const Vec2 e = w.heading[p];
+    const Headway h = headway_point(nb, w, p, e, P.headway_width);
+    const double g = h.gap / P.time_gap, V = std::max(0.0, g);
+    if (!(V < u)) continue;
+    const Vec2& ab = a_bar[p];
+    const Vec2 c = (V - u) / P.tau * e;
+    e_bar[p] += ab * ((V - u) / P.tau);
+    u_bar[p] -= ab.dot(e) / P.tau;
+    out.params.tau += ab.dot(-c / P.tau);
+    if (g > 0) {
+      const double V_bar = ab.dot(e) / P.tau, gap_bar = V_bar / P.time_gap;
+      out.params.time_gap += V_bar * (-h.gap / (P.time_gap * P.time_gap));
+      const Vec2 r = w.x[h.q] - w.x[p];
+      x_bar[h.q] += gap_bar * e;
+      x_bar[p] -= gap_bar * e;
+      e_bar[p] += gap_bar * r;
+    }
   }
 }
 }  // namespace
@@ -129,6 +165,7 @@ ModelGradient WindowGradient::run(Simulation& sim, int steps, const StateLossGra
     into.back().accel = sim.world().accel;
     into.back().force = sim.world().pair_force;
     into.back().heading_used = sim.world().heading;
+    into.back().free_speed = sim.world().free_speed;
   };
   std::vector<double> step_time;  // the clock at the start of each step (time-dependent terms)
   peak_stored_steps_ = 0;
@@ -171,6 +208,8 @@ ModelGradient WindowGradient::run(Simulation& sim, int steps, const StateLossGra
   Grid grid = sim.grid();
   TractionAdjoint tadj;
   TransferAdjoint xadj;
+  std::vector<Vec2> hx, he;  // the headway adjoint's dL/dx and dL/de
+  std::vector<double> hu;    // and its dL/du
   const MaterialParams& P = model.params;
   for (int k = steps - 1; k >= 0; --k) {
     if (checkpointing && (k == steps - 1 || k % K == K - 1)) {
@@ -228,13 +267,17 @@ ModelGradient WindowGradient::run(Simulation& sim, int steps, const StateLossGra
     tadj.reset(n, out.network.size());
     kernel_traction_adjoint(in, nb, w, xadj.force, tadj);
     for (size_t i = 0; i < out.network.size(); ++i) out.network[i] += tadj.network[i];
-    // Drive adjoint.
+    // Headway adjoint, then the drive's (the headway reads the drive's direction and free speed).
+    hx.assign(n, Vec2::Zero());
+    he.assign(n, Vec2::Zero());
+    hu.assign(n, 0.0);
+    headway_adjoint(in, nb, w, xadj.accel, hx, he, hu, out);
     in.time = step_time[static_cast<size_t>(k)];
     for (size_t p = 0; p < n; ++p) {
       Vec2 gx = Vec2::Zero(), gv = Vec2::Zero();
-      drive_adjoint(in, behaviours[static_cast<size_t>(w.behaviour[p])], w, p, st.heading[p], xadj.accel[p], tadj.heading[p],
-                    gx, gv, out);
-      xb[p] = xadj.x[p] + tadj.x[p] + gx;
+      drive_adjoint(in, behaviours[static_cast<size_t>(w.behaviour[p])], w, p, st.heading[p], xadj.accel[p],
+                    tadj.heading[p] + he[p], hu[p], gx, gv, out);
+      xb[p] = xadj.x[p] + tadj.x[p] + hx[p] + gx;
       vb[p] = xadj.v[p] + tadj.v[p] + gv;
       out.params.comfort_distance += tadj.comfort[p];
       Cb[p] = xadj.C[p];

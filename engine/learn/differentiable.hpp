@@ -1,7 +1,7 @@
 #pragma once
 // Reverse-mode gradients of a loss over a window of steps (DESIGN.md section 4). The forward
 // pass stores each step's particle state (x, v, C, J, heading) and what its drive and traction
-// produced (accelerations, pair forces, headings used): 136 bytes per agent per step. The
+// produced (accelerations, pair forces, headings used): 144 bytes per agent per step. The
 // backward pass rebuilds each step's neighbour lists and grid and runs the kernels' adjoints in
 // reverse order. Covers the crowd and fluid materials with the agent set fixed during the
 // window (an exit or a source inside it is an error).
@@ -33,7 +33,7 @@ class WindowGradient {
   // Runs `steps` steps of `sim` forward (it advances and ends at the window's last state),
   // recording states, then the backward pass.
   ModelGradient run(Simulation& sim, int steps, const StateLossGrad& loss_grad);
-  size_t stored_bytes_per_agent_step() const { return 6 * sizeof(Vec2) + sizeof(Mat2) + sizeof(double); }
+  size_t stored_bytes_per_agent_step() const { return 6 * sizeof(Vec2) + sizeof(Mat2) + 2 * sizeof(double); }
   // Most step states held at once during the last run (checkpoints included).
   size_t peak_stored_steps() const { return peak_stored_steps_; }
 

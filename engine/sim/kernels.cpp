@@ -125,7 +125,7 @@ Vec2 desired_direction(const StepInputs& in, const Behaviour& b, const Vec2& x) 
 }
 
 void drive_point(const StepInputs& in, const Behaviour& beh, int group, const Vec2& x, const Vec2& v, double v0,
-                 const Vec2& prev_heading, Vec2& accel, Vec2& heading) {
+                 const Vec2& prev_heading, Vec2& accel, Vec2& heading, double& free_speed) {
   const MaterialParams& P = in.model.params;
   Vec2 a = Vec2::Zero();
   double factor = 1;
@@ -133,6 +133,7 @@ void drive_point(const StepInputs& in, const Behaviour& beh, int group, const Ve
   Vec2 dir = desired_direction(in, beh, x);
   if (beh.kind != Behaviour::Kind::None) a = (P.v0_scale * v0 * factor * dir - v) / P.tau + a;
   accel = a;
+  free_speed = beh.kind != Behaviour::Kind::None && dir.squaredNorm() > 0 ? P.v0_scale * v0 * factor : 0;
   if (dir.squaredNorm() > 0) heading = dir;
   else if (v.squaredNorm() > 1e-8) heading = v.normalized();
   else heading = prev_heading;
@@ -142,7 +143,48 @@ void kernel_drive(const StepInputs& in, World& w, ThreadPool& pool) {
   pool.parallel_for(w.size(), [&](size_t b, size_t e) {
     for (size_t p = b; p < e; ++p)
       drive_point(in, in.behaviours[w.behaviour[p]], w.group[p], w.x[p], w.v[p], w.v0[p], w.heading[p], w.accel[p],
-                  w.heading[p]);
+                  w.heading[p], w.free_speed[p]);
+  });
+}
+
+// ---------------------------------------------------------------------------------------------
+// 1b. Headway speed adaptation: a_p += (min(u_p, max(0, s_p / T)) - u_p) e_p / tau (kernels.hpp).
+
+Headway headway_point(const NeighbourGrid& nb, const World& w, size_t p, const Vec2& e, double width) {
+  Headway h;
+  const Vec2 xp = w.x[p];
+  nb.for_each_candidate(p, [&](size_t q) {
+    const Vec2 r = w.x[q] - xp;
+    const double along = r.dot(e), side = r.x() * e.y() - r.y() * e.x();
+    const double bodies = w.radius[p] + w.radius[q];
+    if (along <= 0 || std::abs(side) >= width * bodies) return;
+    const double gap = along - bodies;
+    if (gap < h.gap) {
+      h.gap = gap;
+      h.q = q;
+    }
+  });
+  return h;
+}
+
+double headway_reach(const Model& m, double max_radius, double max_free_speed) {
+  if (!(m.params.time_gap > 0)) return 0;
+  // A person ahead limits the speed while gap < T u: centres up to 2 r + T u ahead and 2 r aside.
+  const double along = 2 * max_radius + m.params.time_gap * max_free_speed, side = 2 * max_radius;
+  return std::sqrt(along * along + side * side);
+}
+
+void kernel_headway(const StepInputs& in, const NeighbourGrid& nb, World& w, ThreadPool& pool) {
+  const MaterialParams& P = in.model.params;
+  if (!(P.time_gap > 0)) return;
+  pool.parallel_for(w.size(), [&](size_t b, size_t e) {
+    for (size_t p = b; p < e; ++p) {
+      const double u = w.free_speed[p];
+      if (!(u > 0)) continue;
+      const Headway h = headway_point(nb, w, p, w.heading[p], P.headway_width);
+      const double V = std::max(0.0, h.gap / P.time_gap);
+      if (V < u) w.accel[p] += (V - u) / P.tau * w.heading[p];
+    }
   });
 }
 

@@ -88,7 +88,25 @@ Vec2 desired_direction(const StepInputs& in, const Behaviour& b, const Vec2& x);
 // One agent's drive, a_p = (s v0 f e - v) / tau + sum of the terms' accelerations, with f the
 // product of the terms' speed factors, and its heading; kernel_drive applies it to every agent.
 void drive_point(const StepInputs& in, const Behaviour& beh, int group, const Vec2& x, const Vec2& v, double v0,
-                 const Vec2& prev_heading, Vec2& accel, Vec2& heading);
+                 const Vec2& prev_heading, Vec2& accel, Vec2& heading, double& free_speed);
+// Headway speed adaptation (model parameter time_gap T > 0; after Tordeux, Chraibi & Seyfried
+// 2016): people walk no faster than the gap to the nearest person ahead of them allows,
+//   V_p = min(u_p, max(0, s_p / T)),  s_p = min over q ahead of (x_q - x_p) . e_p - r_p - r_q,
+// over the neighbours q ahead ((x_q - x_p) . e_p > 0) and within a lane of half-width
+// headway_width (r_p + r_q) (|(x_q - x_p) x e_p| below it: 1 is everyone whose body overlaps
+// p's path; smaller lets a person half a body aside be followed closely, the zipper effect of
+// bottlenecks); u_p is the drive's free speed and e_p its direction. Not reciprocal: nobody
+// slows for the person behind. The drive is corrected by
+//   a_p += (V_p - u_p) e_p / tau.
+struct Headway {
+  size_t q = static_cast<size_t>(-1);  // the nearest person ahead, or none
+  double gap = 1e300;                  // s_p, m
+};
+Headway headway_point(const NeighbourGrid& nb, const World& w, size_t p, const Vec2& e, double width);
+// Reach of the neighbour lists the headway needs for bodies up to max_radius and free speeds up
+// to max_speed (0 when the adaptation is off).
+double headway_reach(const Model& m, double max_radius, double max_free_speed);
+void kernel_headway(const StepInputs& in, const NeighbourGrid& nb, World& w, ThreadPool& pool);
 // How far beyond body contact (r_p + r_q) a pair interacts: the comfort distance c for the
 // continuum materials' pair traction; for the social force, where the exponential repulsion
 // has decayed to e^-8 of its strength (8 B, at most 3 m).

@@ -26,6 +26,9 @@ const std::vector<ParamInfo>& param_table() {
       {"contact_epsilon", &MaterialParams::contact_epsilon, 1e-4, 0.1, "m", kFixed, false},
       {"wall_clearance", &MaterialParams::wall_clearance, 0, 0.5, "m", kFixed, true},
       {"alignment_time", &MaterialParams::alignment_time, 1e-3, 1e3, "s", kContinuum, false},
+      {"time_gap", &MaterialParams::time_gap, 0, 5, "s", kContinuum, false},
+      // A hard lane edge: no gradient, fixed in training.
+      {"headway_width", &MaterialParams::headway_width, 0.05, 1, "1", kFixed, false},
       {"sf_A", &MaterialParams::sf_A, 0, 1e4, "m/s^2", kSocialForce, false},
       {"sf_B", &MaterialParams::sf_B, 0.01, 1, "m", kSocialForce, false},
       {"sf_k", &MaterialParams::sf_k, 0, 1e5, "1/s^2", kSocialForce, false},
@@ -137,6 +140,8 @@ bool ParamInfo::learnable_in(const Model& m) const {
   if (m.material == MaterialKind::Elastic) return false;
   // The fluid is symmetric: its tension scale is fixed at 1.
   if (m.material == MaterialKind::Fluid && field == &MaterialParams::tension_scale) return false;
+  // A time gap of 0 switches the headway adaptation off; it is learned from a start above 0.
+  if (field == &MaterialParams::time_gap && m.params.time_gap == 0) return false;
   return (learned_by & (m.is_continuum() ? kContinuum : kSocialForce)) != 0;
 }
 

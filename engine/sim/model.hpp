@@ -26,6 +26,8 @@ struct MaterialParams {
   double contact_epsilon = 0.01; // m: smallest gap used in phi(d) = -log((d - 2 r_b)/c)
   double wall_clearance = 0.1;   // m: particle centres are kept at least this far from solids
   double alignment_time = 0.5;   // s: particle velocities relax towards the local grid flow (PIC share dt/this)
+  double time_gap = 0;           // s: T of the headway speed adaptation (0: off); speed <= gap ahead / T
+  double headway_width = 0.5;    // lane half-width of the headway, as a fraction of r_p + r_q
   // social_force model (Helbing, Farkas & Vicsek 2000), per unit mass (their values / 80 kg):
   double sf_A = 25;              // m/s^2: strength of the exponential repulsion A exp((r_pq - d)/B)
   double sf_B = 0.08;            // m: its range

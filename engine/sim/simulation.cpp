@@ -55,7 +55,8 @@ Simulation::Simulation(const ScenarioDef& scenario, const Model& model, int thre
                 " m must be smaller than every comfort distance (smallest: " + format_number(min_c) + " m)");
   max_radius_ = max_r;
   max_comfort_ = max_c;
-  init_neighbours(2 * max_r + interaction_margin(model_, max_c));
+  for (const auto& g : scenario_.groups) max_v0_ = std::max(max_v0_, g.desired_speed);
+  init_neighbours(neighbour_reach());
   size_t capacity = 0;
   source_accum_.assign(scenario_.groups.size(), 0);
   source_spawned_.assign(scenario_.groups.size(), 0);
@@ -86,7 +87,7 @@ void Simulation::set_model(const Model& m) {
                     " m must be smaller than every agent's comfort distance (agent " + std::to_string(world_.id[p]) +
                     ": " + format_number(world_.comfort[p]) + " m)");
   model_ = m;
-  init_neighbours(2 * max_radius_ + interaction_margin(model_, max_comfort_));
+  init_neighbours(neighbour_reach());
   prepare_derived();
 }
 
@@ -185,12 +186,11 @@ EntityId Simulation::add_agent(const AgentDef& def) {
   if (model_.has_traction() && def.comfort_distance <= model_.params.contact_epsilon)
     throw Error("agent comfort_distance must be larger than the model's contact_epsilon (" +
                 format_number(model_.params.contact_epsilon) + " m)");
-  // Keep the cell lists wide enough for the new agent's reach (r + r_max + c).
-  double reach = 2 * std::max(def.body_radius, max_radius_) +
-                 interaction_margin(model_, std::max(def.comfort_distance, max_comfort_));
+  // Keep the cell lists wide enough for the new agent's reach.
   max_radius_ = std::max(max_radius_, def.body_radius);
   max_comfort_ = std::max(max_comfort_, def.comfort_distance);
-  if (reach > neighbours_.range) init_neighbours(reach);
+  max_v0_ = std::max(max_v0_, def.desired_speed);
+  if (neighbour_reach() > neighbours_.range) init_neighbours(neighbour_reach());
   return world_.add(def);
 }
 
@@ -322,6 +322,13 @@ void Simulation::spawn_sources() {
   }
 }
 
+// A pair interacts up to r_p + r_q + c_p (or the social force's margin); the headway looks
+// further ahead: the cell lists cover the largest of them over the agents added so far.
+double Simulation::neighbour_reach() const {
+  return std::max(2 * max_radius_ + interaction_margin(model_, max_comfort_),
+                  headway_reach(model_, max_radius_, model_.params.v0_scale * max_v0_));
+}
+
 void Simulation::init_neighbours(double reach) {
   // The social force keeps a step's neighbour lists through its substeps: pairs may close by
   // up to 2 max_speed dt meanwhile, so the lists reach that much further.
@@ -339,6 +346,7 @@ void Simulation::prepare_derived() {
     kernel_social_force(in, neighbours_, world_, pool_);
     return;
   }
+  kernel_headway(in, neighbours_, world_, pool_);
   kernel_traction(in, neighbours_, world_, pool_);
   kernel_p2g(in, world_, grid_, pool_);  // reported pressure of the initial state
 }
@@ -364,6 +372,7 @@ void Simulation::step() {
     mark();
     neighbours_.build(world_, pool_);
     mark();
+    kernel_headway(in, neighbours_, world_, pool_);
     kernel_traction(in, neighbours_, world_, pool_);
     mark();
     kernel_p2g(in, world_, grid_, pool_);

@@ -108,6 +108,7 @@ class Simulation {
   void prepare_derived();  // drive, traction and P2G on the current state, so pressure is defined
   void step_social_force(const StepInputs& in);  // the social_force model's motion (no grid)
   void init_neighbours(double reach);
+  double neighbour_reach() const;
   AgentDef agent_template(const GroupDef& g, int group_index) const;
 
   ScenarioDef scenario_;
@@ -129,7 +130,7 @@ class Simulation {
   double time_at_dt_change_ = 0;
   bool failed_ = false;  // the state became non-finite: no further steps
   long spawned_ = 0;
-  double max_radius_ = 0, max_comfort_ = 0;  // over agents added so far (for the cell lists)
+  double max_radius_ = 0, max_comfort_ = 0, max_v0_ = 0;  // over agents added so far (for the cell lists)
   std::vector<int> exit_of_;        // scratch of retire_at_exits
   std::vector<size_t> first_bad_;   // scratch of check_finite
   bool profiling_ = false;

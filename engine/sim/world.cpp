@@ -10,7 +10,7 @@ void World::reserve(size_t n) {
   x.reserve(n); v.reserve(n); C.reserve(n); F.reserve(n); J.reserve(n);
   id.reserve(n); radius.reserve(n); comfort.reserve(n); v0.reserve(n);
   behaviour.reserve(n); group.reserve(n);
-  accel.reserve(n); heading.reserve(n); pair_force.reserve(n); pair_virial.reserve(n); pressure.reserve(n);
+  accel.reserve(n); heading.reserve(n); free_speed.reserve(n); pair_force.reserve(n); pair_virial.reserve(n); pressure.reserve(n);
 }
 
 EntityId World::add(const AgentDef& d) {
@@ -30,6 +30,7 @@ EntityId World::add(const AgentDef& d) {
   group.push_back(d.group);
   accel.push_back(Vec2::Zero());
   heading.push_back(Vec2(1, 0));
+  free_speed.push_back(0);
   pair_force.push_back(Vec2::Zero());
   pair_virial.push_back(0);
   pressure.push_back(0);
@@ -48,7 +49,7 @@ void World::remove_at(size_t i) {
   swap_pop(x, i); swap_pop(v, i); swap_pop(C, i); swap_pop(F, i); swap_pop(J, i);
   swap_pop(id, i); swap_pop(radius, i); swap_pop(comfort, i); swap_pop(v0, i);
   swap_pop(behaviour, i); swap_pop(group, i);
-  swap_pop(accel, i); swap_pop(heading, i); swap_pop(pair_force, i); swap_pop(pair_virial, i);
+  swap_pop(accel, i); swap_pop(heading, i); swap_pop(free_speed, i); swap_pop(pair_force, i); swap_pop(pair_virial, i);
   swap_pop(pressure, i);
 }
 

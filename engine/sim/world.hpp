@@ -35,6 +35,7 @@ class World {
   // Per-step derived quantities (written by the kernels, read by outputs and the next kernels).
   std::vector<Vec2> accel;       // active drive + body forces, m/s^2
   std::vector<Vec2> heading;     // unit desired direction (or motion direction)
+  std::vector<double> free_speed;  // u = v0_scale v0 f of the drive (m/s); 0 without a desired direction
   std::vector<Vec2> pair_force;  // pair traction on the particle
   std::vector<double> pair_virial;  // sum over neighbours of f_pq . (x_p - x_q)
   std::vector<double> pressure;  // reported pressure (continuum + pair virial), written by P2G

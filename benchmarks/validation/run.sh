@@ -1,0 +1,76 @@
+#!/usr/bin/env bash
+# Validation against real crowds: fundamental diagram (ring corridor) and bottleneck flow J(b)
+# for each model given (default: the built-in default and the shipped learned model), against
+# ../shared/data/reference. Writes benchmarks/validation/results.md.
+# Usage: benchmarks/validation/run.sh [BUILD_DIR] [MODEL ...]
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+build=${1:-build}
+shift || true
+models=("$@")
+[ ${#models[@]} -gt 0 ] || models=(default scenarios/models/learned_juelich.json scenarios/models/headway.json)
+ref=../shared/data/reference
+[ -d "$ref" ] || { echo "skipped: $ref is absent"; exit 0; }
+v="$build/benchmarks/validate"
+work="$build/validation"
+mkdir -p "$work"
+out=benchmarks/validation/results.md
+for m in "${models[@]}"; do
+  name=$(basename "$m" .json)
+  "$v" fd --model "$m" --threads 2 > "$work/fd_$name.csv"
+  "$v" bottleneck --model "$m" --threads 2 > "$work/bottleneck_$name.csv"
+done
+/usr/bin/python3 - "$ref" "$work" "$out" "$(git rev-parse --short HEAD)" "${models[@]}" <<'PY'
+import csv, math, os, sys
+ref, work, out, commit, models = sys.argv[1], sys.argv[2], sys.argv[3], sys.argv[4], sys.argv[5:]
+def rows(path):
+    with open(path) as f:
+        return list(csv.DictReader(l for l in f if not l.startswith("#")))
+weid = lambda rho: 1.34 * (1 - math.exp(-1.913 * (1 / rho - 1 / 5.4)))
+jue = {float(r["rho"]): float(r["juelich_corridor_v"]) for r in rows(os.path.join(ref, "fundamental_diagram.csv")) if r["juelich_corridor_v"]}
+def band(rho):
+    lo = hi = weid(rho)
+    near = [v for k, v in jue.items() if abs(k - rho) <= 0.25]
+    for v in near:
+        lo, hi = min(lo, v), max(hi, v)
+    return lo - max(0.25 * lo, 0.15), hi + max(0.25 * hi, 0.15)
+refJ = {}
+for r in rows(os.path.join(ref, "bottleneck_flow.csv")):
+    refJ.setdefault(float(r["b_m"]), []).append(float(r["J_per_s"]))
+L = ["# Validation against real crowds", "",
+     "Produced by `benchmarks/validation/run.sh` at commit %s on a 2-core Debian 12 machine." % commit, "",
+     "## Fundamental diagram (ring corridor 2.5 m wide, inner radius 6 m, desired speed 1.34 m/s)", "",
+     "Mean speed along the corridor over 30 s after 20 s of warm-up; rho = people / corridor area.",
+     "Acceptance band (issue 10): between Weidmann and the Juelich corridor value, widened by 25% or",
+     "0.15 m/s; below 0.3 m/s from 5 /m^2. Peak: most people in any 1 m x 1 m box.", "",
+     "| model | rho target | rho | speed m/s | Weidmann | Juelich | band | in band | peak /m^2 |",
+     "|---|---:|---:|---:|---:|---:|---|---|---:|"]
+for m in models:
+    name = os.path.basename(m).replace(".json", "")
+    for r in rows(os.path.join(work, "fd_%s.csv" % name)):
+        rho, v = float(r["rho"]), float(r["speed_mean"])
+        if rho >= 4.75:
+            lo, hi, ok = 0, 0.3, v < 0.3
+            b = "< 0.30"
+        else:
+            lo, hi = band(rho)
+            ok = lo <= v <= hi
+            b = "%.2f-%.2f" % (lo, hi)
+        j = [val for k, val in jue.items() if abs(k - rho) <= 0.25]
+        L.append("| %s | %s | %.2f | %.3f | %.2f | %s | %s | %s | %s |" % (name, r["rho_target"], rho, v, weid(rho),
+                 "%.2f" % j[0] if j else "-", b, "yes" if ok else "**no**", r["peak_per_m2"]))
+L += ["", "## Bottleneck flow J(b) from a waiting crowd at 3.5 /m^2", "",
+      "Room 6 m deep, opening of width b in a 0.4 m wall; J over the passages from the 20th to the 80th",
+      "percentile. Acceptance: within 20% of the measured value (mean where several).", "",
+      "| model | b m | agents | J /s | measured | ratio | within 20% | peak /m^2 |", "|---|---:|---:|---:|---:|---:|---|---:|"]
+for m in models:
+    name = os.path.basename(m).replace(".json", "")
+    for r in rows(os.path.join(work, "bottleneck_%s.csv" % name)):
+        b, J = float(r["b"]), float(r["J"])
+        meas = refJ.get(b)
+        mv = sum(meas) / len(meas) if meas else None
+        L.append("| %s | %.1f | %s | %.2f | %s | %s | %s | %s |" % (name, b, r["agents"], J, "%.2f" % mv if mv else "-",
+                 "%.2f" % (J / mv) if mv else "-", ("yes" if abs(J / mv - 1) <= 0.2 else "**no**") if mv else "-", r["peak_per_m2"]))
+open(out, "w").write("\n".join(L) + "\n")
+PY
+cat "$out"
