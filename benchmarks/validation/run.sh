@@ -15,10 +15,22 @@ v="$build/benchmarks/validate"
 work="$build/validation"
 mkdir -p "$work"
 out=benchmarks/validation/results.md
+real=../shared/data/real
+# Whole-run replays: the venue, the recording and the passage line through its bottleneck.
+replays=("scenarios/bottleneck_ao.json $real/fzj_hermes_2009_bottleneck_ao/traj_AO_300.txt -0.6,0,2.4,0"
+         "scenarios/bottleneck.json $real/fzj_crowdqueue_2018_bottleneck/030_c_56_h0.txt -0.25,-0.6,0.25,-0.6"
+         "scenarios/bottleneck.json $real/fzj_crowdqueue_2018_bottleneck/040_c_56_h-.txt -0.25,-0.6,0.25,-0.6")
 for m in "${models[@]}"; do
   name=$(basename "$m" .json)
   "$v" fd --model "$m" --threads 2 > "$work/fd_$name.csv"
   "$v" bottleneck --model "$m" --threads 2 > "$work/bottleneck_$name.csv"
+  : > "$work/replay_$name.csv"
+  for r in "${replays[@]}"; do
+    read -r scen traj line <<< "$r"
+    run=$(basename "$traj" .txt)
+    "$v" replay --model "$m" --scenario "$scen" --trajectories "$traj" --line "$line" --threads 2 \
+        --curve "$work/nt_${name}_$run.csv" | tail -1 | sed "s/^/$run,/" >> "$work/replay_$name.csv"
+  done
 done
 /usr/bin/python3 - "$ref" "$work" "$out" "$(git rev-parse --short HEAD)" "${models[@]}" <<'PY'
 import csv, math, os, sys
@@ -71,6 +83,19 @@ for m in models:
         mv = sum(meas) / len(meas) if meas else None
         L.append("| %s | %.1f | %s | %.2f | %s | %s | %s | %s |" % (name, b, r["agents"], J, "%.2f" % mv if mv else "-",
                  "%.2f" % (J / mv) if mv else "-", ("yes" if abs(J / mv - 1) <= 0.2 else "**no**") if mv else "-", r["peak_per_m2"]))
+L += ["", "## Whole-run replays", "",
+      "Every recorded person enters where and when the recording first shows them (velocity from their",
+      "first 0.5 s; desired speed and goal of the scenario's first group); passages through the line",
+      "across the bottleneck; flow over the middle 60% of passages. Acceptance: within 15% of the",
+      "recording. N(t) curves: `$BUILD/validation/nt_<model>_<run>.csv`.", "",
+      "| model | run | people | passages rec / sim | J recorded | J simulated | ratio | within 15% |",
+      "|---|---|---:|---|---:|---:|---:|---|"]
+for m in models:
+    name = os.path.basename(m).replace(".json", "")
+    for line in open(os.path.join(work, "replay_%s.csv" % name)):
+        run, people, placed, prec, psim, jr, js, ratio, dur, secs = line.strip().split(",")
+        L.append("| %s | %s | %s | %s / %s | %s | %s | %s | %s |" % (name, run, people, prec, psim, jr, js, ratio,
+                 "yes" if abs(float(ratio) - 1) <= 0.15 else "**no**"))
 open(out, "w").write("\n".join(L) + "\n")
 PY
 cat "$out"

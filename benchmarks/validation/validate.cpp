@@ -3,6 +3,7 @@
 //
 //   validate fd --model M [--densities 0.5,1,...] [--threads N] [--warmup S] [--measure S]
 //   validate bottleneck --model M [--widths 0.4,0.8,...] [--threads N] [--density D]
+//   validate replay --model M --scenario S --trajectories T --line x0,y0,x1,y1 [--curve CSV]
 //
 // fd: a ring corridor 2.5 m wide (inner radius 6 m, so it bends gently), people placed at the
 // density asked for, walking around it (behaviour "orbit", desired speed 1.34 m/s, Weidmann's
@@ -23,13 +24,15 @@
 #include <vector>
 
 #include "engine/analysis/validation.hpp"
+#include "engine/predict/replay.hpp"
 
 using namespace crowdmpm;
 
 namespace {
 [[noreturn]] void usage(const std::string& msg) {
-  std::fprintf(stderr, "validate: %s\nusage: validate fd|bottleneck --model M [--densities LIST | --widths LIST] "
-                       "[--threads N] [--warmup S] [--measure S] [--density D]\n",
+  std::fprintf(stderr, "validate: %s\nusage: validate fd|bottleneck|replay --model M [--densities LIST | --widths LIST] "
+                       "[--threads N] [--warmup S] [--measure S] [--density D]\n"
+                       "       validate replay --model M --scenario S --trajectories T --line x0,y0,x1,y1 [--curve CSV]\n",
                msg.c_str());
   std::exit(2);
 }
@@ -73,6 +76,31 @@ int run_bottleneck(const Model& model, const std::vector<double>& widths, int th
   }
   return 0;
 }
+// N(t) of a whole-run replay against the recording, written as "t,recorded,simulated" rows to
+// `curve` (if given); one summary row on stdout.
+int run_replay(const Model& model, const std::string& scenario, const std::string& trajectories,
+               const std::vector<double>& line, int threads, const std::string& curve) {
+  if (line.size() != 4) usage("--line needs x0,y0,x1,y1");
+  const ScenarioDef sc = ScenarioDef::load(scenario);
+  const TrajectorySet rec = TrajectorySet::read(trajectories);
+  const auto t0 = std::chrono::steady_clock::now();
+  const ReplayResult r = replay_recording(sc, model, rec, PassageLine{Vec2(line[0], line[1]), Vec2(line[2], line[3])}, 30, threads);
+  const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  std::printf("people,placed,passages_recorded,passages_simulated,J_recorded,J_simulated,ratio,duration,wall_seconds\n");
+  std::printf("%zu,%zu,%zu,%zu,%.3f,%.3f,%.3f,%.1f,%.1f\n", r.people, r.placed, r.recorded.size(), r.simulated.size(),
+              r.recorded_flow, r.simulated_flow, r.recorded_flow > 0 ? r.simulated_flow / r.recorded_flow : 0.0, r.duration, secs);
+  if (!curve.empty()) {
+    std::FILE* f = std::fopen(curve.c_str(), "w");
+    if (!f) throw Error("cannot write " + curve);
+    std::fprintf(f, "t,recorded,simulated\n");
+    for (double t = 0; t <= r.duration + 1e-9; t += 0.5) {
+      const auto n = [&](const std::vector<double>& v) { return std::upper_bound(v.begin(), v.end(), t) - v.begin(); };
+      std::fprintf(f, "%.1f,%ld,%ld\n", t, static_cast<long>(n(r.recorded)), static_cast<long>(n(r.simulated)));
+    }
+    std::fclose(f);
+  }
+  return 0;
+}
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -83,6 +111,8 @@ int main(int argc, char** argv) {
   std::vector<double> widths = {0.4, 0.8, 1.0, 1.2, 1.8, 2.4, 3.0, 5.0};
   int threads = 1;
   double warmup = 20, measure = 30, density = 3.5;
+  std::string scenario, trajectories, curve;
+  std::vector<double> line;
   for (int i = 2; i < argc; ++i) {
     const std::string a = argv[i];
     auto value = [&]() -> std::string {
@@ -96,12 +126,31 @@ int main(int argc, char** argv) {
     else if (a == "--warmup") warmup = parse_list(value()).at(0);
     else if (a == "--measure") measure = parse_list(value()).at(0);
     else if (a == "--density") density = parse_list(value()).at(0);
+    else if (a == "--scenario") scenario = value();
+    else if (a == "--trajectories") trajectories = value();
+    else if (a == "--curve") curve = value();
+    else if (a == "--line") {
+      // Coordinates may be negative: parsed here rather than by parse_list.
+      const std::string v = value();
+      size_t b = 0;
+      while (b <= v.size()) {
+        size_t e = v.find(',', b);
+        if (e == std::string::npos) e = v.size();
+        char* end = nullptr;
+        const std::string item = v.substr(b, e - b);
+        const double d = std::strtod(item.c_str(), &end);
+        if (item.empty() || *end || !std::isfinite(d)) usage("--line: '" + item + "' is not a number");
+        line.push_back(d);
+        b = e + 1;
+      }
+    }
     else usage("unknown option '" + a + "'");
   }
   try {
     const Model model = model_path.empty() || model_path == "default" ? Model::default_model() : Model::load(model_path);
     if (what == "fd") return run_fd(model, densities, threads, warmup, measure);
     if (what == "bottleneck") return run_bottleneck(model, widths, threads, density);
+    if (what == "replay") return run_replay(model, scenario, trajectories, line, threads, curve);
     usage("unknown check '" + what + "' (fd or bottleneck)");
   } catch (const Error& e) {
     std::fprintf(stderr, "validate: %s\n", e.what());
