@@ -8,6 +8,7 @@
 #include <cstdio>
 
 #include "engine/analysis/validation.hpp"
+#include "engine/predict/replay.hpp"
 #include "support.hpp"
 
 using namespace crowdmpm;
@@ -55,4 +56,29 @@ TEST_CASE("default model: the crowd keeps near free speed at 3 persons/m2 (the v
   const CorridorResult r = ring_corridor_speed(Model::default_model(), 3, 10, 10, 2);
   std::printf("default model at %.2f persons/m2: %.3f m/s (Weidmann %.2f)\n", r.density, r.speed, weidmann(r.density));
   CHECK(r.speed > 1.0);  // if this fails, the default changed: move it into the band checks above
+}
+
+TEST_CASE("replays: recorded flows as measured and the headway model within 15 percent at the CrowdQueue gate", "[validity][real]") {
+  const std::string data = test::shared_data_dir();
+  if (data.empty()) {
+    WARN("skipped: ../shared/data is absent, no recording to replay");
+    return;
+  }
+  const Model headway = Model::load(test::repo_path("scenarios/models/headway.json"));
+  const TrajectorySet ao = TrajectorySet::read(data + "/real/fzj_hermes_2009_bottleneck_ao/traj_AO_300.txt");
+  // The recording's own flow through the 3.0 m bottleneck (issue 10: 7.1 persons/s).
+  const std::vector<double> ao_passages = recorded_passages(ao, PassageLine{Vec2(-0.6, 0), Vec2(2.4, 0)});
+  CHECK(ao_passages.size() == ao.person_count());
+  CHECK(middle_flow(ao_passages) == Approx(7.1).epsilon(0.05));
+  const ScenarioDef cq = ScenarioDef::load(test::scenario_path("bottleneck"));
+  for (const char* run : {"030_c_56_h0", "040_c_56_h-"}) {
+    const TrajectorySet rec = TrajectorySet::read(data + "/real/fzj_crowdqueue_2018_bottleneck/" + run + ".txt");
+    const ReplayResult r = replay_recording(cq, headway, rec, PassageLine{Vec2(-0.25, -0.6), Vec2(0.25, -0.6)}, 30, 2);
+    std::printf("replay %s: %zu people placed, recorded %.3f persons/s, headway model %.3f (%zu passages)\n", run,
+                r.placed, r.recorded_flow, r.simulated_flow, r.simulated.size());
+    CHECK(r.placed == r.people);
+    CHECK(r.recorded_flow == Approx(1.16).epsilon(0.06));  // issue 10: 1.18 and 1.14
+    CHECK(r.simulated.size() == r.people);                 // everyone passes the gate
+    CHECK(r.simulated_flow == Approx(r.recorded_flow).epsilon(0.15));
+  }
 }
