@@ -37,7 +37,8 @@ namespace {
   std::exit(2);
 }
 
-std::vector<double> parse_list(const std::string& s) {
+// Comma-separated numbers; positive ones only unless `any_sign`.
+std::vector<double> parse_list(const std::string& s, bool any_sign = false) {
   std::vector<double> out;
   size_t b = 0;
   while (b < s.size()) {
@@ -46,7 +47,8 @@ std::vector<double> parse_list(const std::string& s) {
     char* end = nullptr;
     const std::string item = s.substr(b, e - b);
     const double v = std::strtod(item.c_str(), &end);
-    if (item.empty() || *end || !(v > 0)) usage("'" + item + "' is not a positive number");
+    if (item.empty() || *end || !std::isfinite(v) || !(any_sign || v > 0))
+      usage("'" + item + "' is not a " + (any_sign ? "number" : "positive number"));
     out.push_back(v);
     b = e + 1;
   }
@@ -129,21 +131,7 @@ int main(int argc, char** argv) {
     else if (a == "--scenario") scenario = value();
     else if (a == "--trajectories") trajectories = value();
     else if (a == "--curve") curve = value();
-    else if (a == "--line") {
-      // Coordinates may be negative: parsed here rather than by parse_list.
-      const std::string v = value();
-      size_t b = 0;
-      while (b <= v.size()) {
-        size_t e = v.find(',', b);
-        if (e == std::string::npos) e = v.size();
-        char* end = nullptr;
-        const std::string item = v.substr(b, e - b);
-        const double d = std::strtod(item.c_str(), &end);
-        if (item.empty() || *end || !std::isfinite(d)) usage("--line: '" + item + "' is not a number");
-        line.push_back(d);
-        b = e + 1;
-      }
-    }
+    else if (a == "--line") line = parse_list(value(), true);
     else usage("unknown option '" + a + "'");
   }
   try {
