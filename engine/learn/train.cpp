@@ -38,6 +38,8 @@ ParamMap::ParamMap(const Fitted& f, std::vector<std::string> scalars, bool netwo
   for (size_t i = 0; i < scalars_.size(); ++i) {
     const std::string& s = scalars_[i];
     const ParamInfo& info = param_info(s);  // throws for unknown names
+    if (info.field == &MaterialParams::time_gap && m.params.time_gap == 0)
+      throw Error("time_gap is 0 in the starting model (the headway adaptation is off): start from a value above 0 to learn it");
     if (!info.learnable_in(m)) {
       std::string known;
       for (const auto& n : learnable_params(m)) known += (known.empty() ? "" : ", ") + n;
