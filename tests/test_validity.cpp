@@ -58,7 +58,7 @@ TEST_CASE("default model: the crowd keeps near free speed at 3 persons/m2 (the v
   CHECK(r.speed > 1.0);  // if this fails, the default changed: move it into the band checks above
 }
 
-TEST_CASE("replays: recorded flows as measured and the headway model within 15 percent at the CrowdQueue gate", "[validity][real]") {
+TEST_CASE("replays: recorded flows as measured and the headway model within 15 percent of AO_300 and the CrowdQueue runs", "[validity][real]") {
   const std::string data = test::shared_data_dir();
   if (data.empty()) {
     WARN("skipped: ../shared/data is absent, no recording to replay");
@@ -70,6 +70,12 @@ TEST_CASE("replays: recorded flows as measured and the headway model within 15 p
   const std::vector<double> ao_passages = recorded_passages(ao, PassageLine{Vec2(-0.6, 0), Vec2(2.4, 0)});
   CHECK(ao_passages.size() == ao.person_count());
   CHECK(middle_flow(ao_passages) == Approx(7.1).epsilon(0.05));
+  const ReplayResult ar = replay_recording(ScenarioDef::load(test::scenario_path("bottleneck_ao")), headway, ao,
+                                           PassageLine{Vec2(-0.6, 0), Vec2(2.4, 0)}, 30, 2);
+  std::printf("replay AO_300: %zu people placed, recorded %.3f persons/s, headway model %.3f (%zu passages)\n", ar.placed,
+              ar.recorded_flow, ar.simulated_flow, ar.simulated.size());
+  CHECK(ar.placed == ar.people);
+  CHECK(ar.simulated_flow == Approx(ar.recorded_flow).epsilon(0.15));
   const ScenarioDef cq = ScenarioDef::load(test::scenario_path("bottleneck"));
   for (const char* run : {"030_c_56_h0", "040_c_56_h-"}) {
     const TrajectorySet rec = TrajectorySet::read(data + "/real/fzj_crowdqueue_2018_bottleneck/" + run + ".txt");

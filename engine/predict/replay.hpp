@@ -32,8 +32,8 @@ double middle_flow(const std::vector<double>& passage_times);
 
 // Replays the recording in the scenario's venue with the model: every recorded person enters
 // at their first recorded position and time (velocity from their first 0.5 s), with the
-// behaviour and desired speed of the scenario's first group and the model's body radius (at
-// most half the distance to the nearest person present). Runs until everyone recorded has
+// behaviour and desired speed of the scenario's first group and the model's body radius and
+// comfort distance (not shrunk to fit a dense recording). Runs until everyone recorded has
 // entered and the simulation has been quiet for `extra` seconds, or the recording's duration
 // plus `extra`.
 ReplayResult replay_recording(const ScenarioDef& scenario, const Model& model, const TrajectorySet& recording,
