@@ -46,7 +46,20 @@ static Behaviour parse_behaviour(const JsonReader& r) {
 
 static void parse_agent_fields(const JsonReader& r, GroupDef& g) {
   g.velocity = r.vec2("velocity", Vec2::Zero());
-  g.desired_speed = r.in_range("desired_speed", 0, 12, 1.3);
+  if (auto ds = r.get("desired_speed"); ds && ds->value().is_object()) {
+    // A truncated normal distribution: each person draws their own free speed.
+    ds->allow_only({"mean", "sd", "min", "max"});
+    g.desired_speed = ds->in_range("mean", 0, 12, std::nullopt);
+    g.speed_sd = ds->in_range("sd", 0, 5, std::nullopt);
+    g.speed_min = ds->in_range("min", 0, 12, std::max(0.0, g.desired_speed - 3 * g.speed_sd));
+    g.speed_max = ds->in_range("max", 0, 12, std::min(12.0, g.desired_speed + 3 * g.speed_sd));
+    if (!(g.speed_min <= g.desired_speed && g.desired_speed <= g.speed_max))
+      ds->fail("needs min <= mean <= max, got " + format_number(g.speed_min) + " <= " + format_number(g.desired_speed) +
+               " <= " + format_number(g.speed_max));
+  } else {
+    g.desired_speed = r.in_range("desired_speed", 0, 12, 1.3);
+    g.speed_min = g.speed_max = g.desired_speed;
+  }
   if (r.has("body_radius")) g.body_radius = r.in_range("body_radius", 0.05, 0.5, std::nullopt);
   if (r.has("comfort_distance")) g.comfort_distance = r.in_range("comfort_distance", 0.01, 2, std::nullopt);
   g.behaviour = r.has("behaviour") ? parse_behaviour(r.at("behaviour")) : Behaviour{};

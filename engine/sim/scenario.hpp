@@ -25,7 +25,9 @@ struct GroupDef {
   double rate = 0, start = 0, end = 0;  // source: persons/s over [start, end)
   int max_count = 0;    // source: at most this many in total
   Vec2 velocity = Vec2::Zero();
-  double desired_speed = 1.3;
+  double desired_speed = 1.3;  // m/s; the mean when people draw their own
+  // Free speeds drawn per person from a normal distribution (sd > 0) truncated to [min, max].
+  double speed_sd = 0, speed_min = 1.3, speed_max = 1.3;
   std::optional<double> body_radius, comfort_distance;  // default: the model's
   Behaviour behaviour;
 };

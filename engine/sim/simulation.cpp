@@ -55,7 +55,7 @@ Simulation::Simulation(const ScenarioDef& scenario, const Model& model, int thre
                 " m must be smaller than every comfort distance (smallest: " + format_number(min_c) + " m)");
   max_radius_ = max_r;
   max_comfort_ = max_c;
-  for (const auto& g : scenario_.groups) max_v0_ = std::max(max_v0_, g.desired_speed);
+  for (const auto& g : scenario_.groups) max_v0_ = std::max(max_v0_, g.speed_max);
   init_neighbours(neighbour_reach());
   size_t capacity = 0;
   source_accum_.assign(scenario_.groups.size(), 0);
@@ -268,6 +268,7 @@ void Simulation::place_group(size_t gi) {
     const double jitter = 0.45 * (a - 2 * r);
     for (size_t i : idx) {
       AgentDef d = tmpl;
+      d.desired_speed = draw_speed(g);
       d.position = pts[i];
       double ang = 2 * M_PI * rng_.uniform(), rad = jitter * std::sqrt(rng_.uniform());
       Vec2 q = pts[i] + rad * Vec2(std::cos(ang), std::sin(ang));
@@ -280,6 +281,20 @@ void Simulation::place_group(size_t gi) {
   }
   throw Error(g.path + ".spawn: cannot place " + std::to_string(count) + " agents of radius " + format_number(r) +
               " m without overlap in the walkable part of the region (" + format_number(area) + " m^2)");
+}
+
+// A person's free speed: the group's, or drawn from its truncated normal distribution (no
+// draw when it has none, so that fixed speeds leave the random stream as it was).
+double Simulation::draw_speed(const GroupDef& g) {
+  if (!(g.speed_sd > 0)) return g.desired_speed;
+  for (int tries = 0; tries < 100; ++tries) {
+    const double u1 = rng_.uniform();  // separate statements: see place_group
+    const double u2 = rng_.uniform();
+    const double z = std::sqrt(-2 * std::log(1 - u1)) * std::cos(2 * M_PI * u2);
+    const double v = g.desired_speed + g.speed_sd * z;
+    if (v >= g.speed_min && v <= g.speed_max) return v;
+  }
+  return g.desired_speed;
 }
 
 long Simulation::pending_spawns() const {
@@ -310,6 +325,7 @@ void Simulation::spawn_sources() {
           clear = (world_.x[q] - p).norm() >= world_.radius[q] + tmpl.body_radius;
         if (!clear) continue;
         AgentDef d = tmpl;
+        d.desired_speed = draw_speed(g);
         d.position = p;
         world_.add(d);
         placed = true;

@@ -102,6 +102,7 @@ class Simulation {
   void resolve(Behaviour& b);
   int nav_for(const std::string& target);
   void place_group(size_t gi);
+  double draw_speed(const GroupDef& g);
   void spawn_sources();
   void retire_at_exits();
   void check_finite();
