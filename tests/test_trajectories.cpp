@@ -7,6 +7,7 @@
 #include <set>
 
 #include "engine/io/trajectory.hpp"
+#include "engine/observe/measure.hpp"
 #include "support.hpp"
 
 using namespace crowdmpm;
@@ -112,4 +113,23 @@ TEST_CASE("every real recording reads with the counts its manifest states", "[tr
     ++files;
   }
   CHECK(files >= 12);
+}
+
+TEST_CASE("classic density and speed in a measurement area count the people inside and their frame-to-frame speed", "[trajectories]") {
+  // Four people walking in +y at 1 m/s and one outside the area, at 10 frames/s for 3 s.
+  std::string text = "# framerate: 10\n";
+  for (int f = 0; f <= 30; ++f)
+    for (int id = 1; id <= 5; ++id) {
+      const double x = id == 5 ? 9.0 : 0.5 + 0.5 * (id - 1), y = -1.5 + 0.1 * f + 0.05 * (id % 2);
+      text += std::to_string(id) + " " + std::to_string(f) + " " + std::to_string(x) + " " + std::to_string(y) + "\n";
+    }
+  const TrajectorySet t = TrajectorySet::parse(text, "<test>");
+  const auto s = classic_density_speed(t, Vec2(0, -2), Vec2(2, 2), 1);
+  REQUIRE(s.size() == 3);  // frames 0, 10, 20 (30 has no next frame)
+  for (const auto& d : s) {
+    CHECK(d.density == Approx(4.0 / 8));
+    CHECK(d.speed == Approx(1.0).epsilon(1e-6));
+  }
+  CHECK(s[1].time == Approx(1.0));
+  CHECK_THROWS_AS(classic_density_speed(t, Vec2(2, 2), Vec2(0, -2), 1), Error);
 }

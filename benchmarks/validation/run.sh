@@ -20,6 +20,15 @@ real=../shared/data/real
 replays=("scenarios/bottleneck_ao.json $real/fzj_hermes_2009_bottleneck_ao/traj_AO_300.txt -0.6,0,2.4,0"
          "scenarios/bottleneck.json $real/fzj_crowdqueue_2018_bottleneck/030_c_56_h0.txt -0.25,-0.6,0.25,-0.6"
          "scenarios/bottleneck.json $real/fzj_crowdqueue_2018_bottleneck/040_c_56_h-.txt -0.25,-0.6,0.25,-0.6")
+# The Juelich corridor fundamental diagram from the Hermes uo runs: classic density and speed in
+# a 4 m box spanning the corridor (x in [0, width], y in [-2, 2]; width from the run name
+# uo-<entrance>-<corridor>-<exit> in cm), one sample a second.
+echo "run,t,rho,speed" > "$work/uo_samples.csv"
+for f in "$real"/fzj_hermes_2009_corridor_uo/uo-*.txt; do
+  run=$(basename "$f" .txt)
+  width=$(echo "$run" | cut -d- -f3 | sed 's/^0*//')
+  "$v" measure --trajectories "$f" --box "0,-2,$(awk "BEGIN{print $width/100}"),2" | tail -n +2 | sed "s/^/$run,/" >> "$work/uo_samples.csv"
+done
 for m in "${models[@]}"; do
   name=$(basename "$m" .json)
   "$v" fd --model "$m" --threads 2 > "$work/fd_$name.csv"
@@ -39,7 +48,15 @@ def rows(path):
     with open(path) as f:
         return list(csv.DictReader(l for l in f if not l.startswith("#")))
 weid = lambda rho: 1.34 * (1 - math.exp(-1.913 * (1 / rho - 1 / 5.4)))
-jue = {float(r["rho"]): float(r["juelich_corridor_v"]) for r in rows(os.path.join(ref, "fundamental_diagram.csv")) if r["juelich_corridor_v"]}
+jue_ref = {float(r["rho"]): float(r["juelich_corridor_v"]) for r in rows(os.path.join(ref, "fundamental_diagram.csv")) if r["juelich_corridor_v"]}
+# The Juelich corridor speeds computed here from the uo runs: medians per bin rho +- 0.25.
+samples = [(float(r["rho"]), float(r["speed"])) for r in rows(os.path.join(work, "uo_samples.csv"))]
+jue, jue_n = {}, {}
+for c in [0.5 * k for k in range(1, 13)]:
+    vs = sorted(v for rho, v in samples if abs(rho - c) <= 0.25)
+    if len(vs) >= 10:
+        jue[c] = vs[len(vs) // 2] if len(vs) % 2 else 0.5 * (vs[len(vs) // 2 - 1] + vs[len(vs) // 2])
+        jue_n[c] = len(vs)
 def band(rho):
     lo = hi = weid(rho)
     near = [v for k, v in jue.items() if abs(k - rho) <= 0.25]
@@ -51,9 +68,15 @@ for r in rows(os.path.join(ref, "bottleneck_flow.csv")):
     refJ.setdefault(float(r["b_m"]), []).append(float(r["J_per_s"]))
 L = ["# Validation against real crowds", "",
      "Produced by `benchmarks/validation/run.sh` at commit %s on a 2-core Debian 12 machine." % commit, "",
-     "## Fundamental diagram (ring corridor 2.5 m wide, inner radius 6 m, desired speed 1.34 m/s)", "",
+     "## Juelich corridor fundamental diagram, computed from the Hermes uo runs", "",
+     "Classic density and speed in a 4 m box spanning the corridor, one sample a second, medians per",
+     "bin rho +- 0.25 (bins with at least 10 samples), beside the values in the reference file.", "",
+     "| rho | samples | median speed m/s (computed) | reference file |", "|---:|---:|---:|---:|"]
+for c in sorted(jue):
+    L.append("| %.1f | %d | %.2f | %s |" % (c, jue_n[c], jue[c], "%.2f" % jue_ref[c] if c in jue_ref else "-"))
+L += ["", "## Fundamental diagram (ring corridor 2.5 m wide, inner radius 6 m, desired speed 1.34 m/s)", "",
      "Mean speed along the corridor over 30 s after 20 s of warm-up; rho = people / corridor area.",
-     "Acceptance band (issue 10): between Weidmann and the Juelich corridor value, widened by 25% or",
+     "Acceptance band (issue 10): between Weidmann and the Juelich corridor value computed above, widened by 25% or",
      "0.15 m/s; below 0.3 m/s from 5 /m^2. Peak: most people in any 1 m x 1 m box.", "",
      "| model | rho target | rho | speed m/s | Weidmann | Juelich | band | in band | peak /m^2 |",
      "|---|---:|---:|---:|---:|---:|---|---|---:|"]

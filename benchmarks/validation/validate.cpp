@@ -4,6 +4,7 @@
 //   validate fd --model M [--densities 0.5,1,...] [--threads N] [--warmup S] [--measure S]
 //   validate bottleneck --model M [--widths 0.4,0.8,...] [--threads N] [--density D]
 //   validate replay --model M --scenario S --trajectories T --line x0,y0,x1,y1 [--curve CSV]
+//   validate measure --trajectories T --box x0,y0,x1,y1   (classic density and speed, 1 /s)
 //
 // fd: a ring corridor 2.5 m wide (inner radius 6 m, so it bends gently), people placed at the
 // density asked for, walking around it (behaviour "orbit", desired speed 1.34 m/s, Weidmann's
@@ -24,6 +25,7 @@
 #include <vector>
 
 #include "engine/analysis/validation.hpp"
+#include "engine/observe/measure.hpp"
 #include "engine/predict/replay.hpp"
 
 using namespace crowdmpm;
@@ -32,7 +34,8 @@ namespace {
 [[noreturn]] void usage(const std::string& msg) {
   std::fprintf(stderr, "validate: %s\nusage: validate fd|bottleneck|replay --model M [--densities LIST | --widths LIST] "
                        "[--threads N] [--warmup S] [--measure S] [--density D]\n"
-                       "       validate replay --model M --scenario S --trajectories T --line x0,y0,x1,y1 [--curve CSV]\n",
+                       "       validate replay --model M --scenario S --trajectories T --line x0,y0,x1,y1 [--curve CSV]\n"
+                       "       validate measure --trajectories T --box x0,y0,x1,y1\n",
                msg.c_str());
   std::exit(2);
 }
@@ -103,6 +106,15 @@ int run_replay(const Model& model, const std::string& scenario, const std::strin
   }
   return 0;
 }
+// Classic density and speed samples (one a second) in the box of a recording, as CSV rows.
+int run_measure(const std::string& trajectories, const std::vector<double>& box) {
+  if (box.size() != 4) usage("--box needs x0,y0,x1,y1");
+  const TrajectorySet rec = TrajectorySet::read(trajectories);
+  std::printf("t,rho,speed\n");
+  for (const DensitySpeed& s : classic_density_speed(rec, Vec2(box[0], box[1]), Vec2(box[2], box[3]), 1))
+    if (std::isfinite(s.speed)) std::printf("%.2f,%.4f,%.4f\n", s.time, s.density, s.speed);
+  return 0;
+}
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -131,7 +143,7 @@ int main(int argc, char** argv) {
     else if (a == "--scenario") scenario = value();
     else if (a == "--trajectories") trajectories = value();
     else if (a == "--curve") curve = value();
-    else if (a == "--line") line = parse_list(value(), true);
+    else if (a == "--line" || a == "--box") line = parse_list(value(), true);
     else usage("unknown option '" + a + "'");
   }
   try {
@@ -139,6 +151,7 @@ int main(int argc, char** argv) {
     if (what == "fd") return run_fd(model, densities, threads, warmup, measure);
     if (what == "bottleneck") return run_bottleneck(model, widths, threads, density);
     if (what == "replay") return run_replay(model, scenario, trajectories, line, threads, curve);
+    if (what == "measure") return run_measure(trajectories, line);
     usage("unknown check '" + what + "' (fd or bottleneck)");
   } catch (const Error& e) {
     std::fprintf(stderr, "validate: %s\n", e.what());
