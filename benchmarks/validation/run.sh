@@ -33,7 +33,8 @@ for m in "${models[@]}"; do
   name=$(basename "$m" .json)
   "$v" fd --model "$m" --threads 2 > "$work/fd_$name.csv"
   "$v" bottleneck --model "$m" --threads 2 > "$work/bottleneck_$name.csv"
-  : > "$work/replay_$name.csv"
+  echo "run,people,placed,passages_recorded,passages_simulated,J_recorded,J_simulated,ratio,duration,wall_seconds" \
+      > "$work/replay_$name.csv"
   for r in "${replays[@]}"; do
     read -r scen traj line <<< "$r"
     run=$(basename "$traj" .txt)
@@ -63,6 +64,11 @@ def band(rho):
     for v in near:
         lo, hi = min(lo, v), max(hi, v)
     return lo - max(0.25 * lo, 0.15), hi + max(0.25 * hi, 0.15)
+names = [os.path.basename(m).replace(".json", "") for m in models]
+def results(kind):  # (model name, row) of every model's <kind>_<name>.csv
+    for name in names:
+        for r in rows(os.path.join(work, "%s_%s.csv" % (kind, name))):
+            yield name, r
 refJ = {}
 for r in rows(os.path.join(ref, "bottleneck_flow.csv")):
     refJ.setdefault(float(r["b_m"]), []).append(float(r["J_per_s"]))
@@ -80,32 +86,26 @@ L += ["", "## Fundamental diagram (ring corridor 2.5 m wide, inner radius 6 m, d
      "0.15 m/s; below 0.3 m/s from 5 /m^2. Peak: most people in any 1 m x 1 m box.", "",
      "| model | rho target | rho | speed m/s | Weidmann | Juelich | band | in band | peak /m^2 |",
      "|---|---:|---:|---:|---:|---:|---|---|---:|"]
-for m in models:
-    name = os.path.basename(m).replace(".json", "")
-    for r in rows(os.path.join(work, "fd_%s.csv" % name)):
-        rho, v = float(r["rho"]), float(r["speed_mean"])
-        if rho >= 4.75:
-            lo, hi, ok = 0, 0.3, v < 0.3
-            b = "< 0.30"
-        else:
-            lo, hi = band(rho)
-            ok = lo <= v <= hi
-            b = "%.2f-%.2f" % (lo, hi)
-        j = [val for k, val in jue.items() if abs(k - rho) <= 0.25]
-        L.append("| %s | %s | %.2f | %.3f | %.2f | %s | %s | %s | %s |" % (name, r["rho_target"], rho, v, weid(rho),
-                 "%.2f" % j[0] if j else "-", b, "yes" if ok else "**no**", r["peak_per_m2"]))
+for name, r in results("fd"):
+    rho, v = float(r["rho"]), float(r["speed_mean"])
+    if rho >= 4.75:
+        ok, b = v < 0.3, "< 0.30"
+    else:
+        lo, hi = band(rho)
+        ok, b = lo <= v <= hi, "%.2f-%.2f" % (lo, hi)
+    j = [val for k, val in jue.items() if abs(k - rho) <= 0.25]
+    L.append("| %s | %s | %.2f | %.3f | %.2f | %s | %s | %s | %s |" % (name, r["rho_target"], rho, v, weid(rho),
+             "%.2f" % j[0] if j else "-", b, "yes" if ok else "**no**", r["peak_per_m2"]))
 L += ["", "## Bottleneck flow J(b) from a waiting crowd at 3.5 /m^2", "",
       "Room 6 m deep, opening of width b in a 0.4 m wall; J over the passages from the 20th to the 80th",
       "percentile. Acceptance: within 20% of the measured value (mean where several).", "",
       "| model | b m | agents | J /s | measured | ratio | within 20% | peak /m^2 |", "|---|---:|---:|---:|---:|---:|---|---:|"]
-for m in models:
-    name = os.path.basename(m).replace(".json", "")
-    for r in rows(os.path.join(work, "bottleneck_%s.csv" % name)):
-        b, J = float(r["b"]), float(r["J"])
-        meas = refJ.get(b)
-        mv = sum(meas) / len(meas) if meas else None
-        L.append("| %s | %.1f | %s | %.2f | %s | %s | %s | %s |" % (name, b, r["agents"], J, "%.2f" % mv if mv else "-",
-                 "%.2f" % (J / mv) if mv else "-", ("yes" if abs(J / mv - 1) <= 0.2 else "**no**") if mv else "-", r["peak_per_m2"]))
+for name, r in results("bottleneck"):
+    b, J = float(r["b"]), float(r["J"])
+    meas = refJ.get(b)
+    mv = sum(meas) / len(meas) if meas else None
+    L.append("| %s | %.1f | %s | %.2f | %s | %s | %s | %s |" % (name, b, r["agents"], J, "%.2f" % mv if mv else "-",
+             "%.2f" % (J / mv) if mv else "-", ("yes" if abs(J / mv - 1) <= 0.2 else "**no**") if mv else "-", r["peak_per_m2"]))
 L += ["", "## Whole-run replays", "",
       "Every recorded person enters where and when the recording first shows them (velocity from their",
       "first 0.5 s; desired speed and goal of the scenario's first group); passages through the line",
@@ -113,12 +113,10 @@ L += ["", "## Whole-run replays", "",
       "recording. N(t) curves: `$BUILD/validation/nt_<model>_<run>.csv`.", "",
       "| model | run | people | passages rec / sim | J recorded | J simulated | ratio | within 15% |",
       "|---|---|---:|---|---:|---:|---:|---|"]
-for m in models:
-    name = os.path.basename(m).replace(".json", "")
-    for line in open(os.path.join(work, "replay_%s.csv" % name)):
-        run, people, placed, prec, psim, jr, js, ratio, dur, secs = line.strip().split(",")
-        L.append("| %s | %s | %s | %s / %s | %s | %s | %s | %s |" % (name, run, people, prec, psim, jr, js, ratio,
-                 "yes" if abs(float(ratio) - 1) <= 0.15 else "**no**"))
+for name, r in results("replay"):
+    L.append("| %s | %s | %s | %s / %s | %s | %s | %s | %s |" % (name, r["run"], r["people"], r["passages_recorded"],
+             r["passages_simulated"], r["J_recorded"], r["J_simulated"], r["ratio"],
+             "yes" if abs(float(r["ratio"]) - 1) <= 0.15 else "**no**"))
 open(out, "w").write("\n".join(L) + "\n")
 PY
 cat "$out"

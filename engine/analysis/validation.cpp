@@ -2,18 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
 #include <string>
 
 namespace crowdmpm {
-
-namespace {
-std::string num(double v) {
-  char buf[64];
-  std::snprintf(buf, sizeof buf, "%.6g", v);
-  return buf;
-}
-}  // namespace
 
 // Most people in any 1 m x 1 m box whose corner lies on a 0.25 m lattice.
 int peak_box_count(const World& w) {
@@ -47,10 +38,10 @@ CorridorResult ring_corridor_speed(const Model& model, double rho, double warmup
   const double area = M_PI * (r_out * r_out - r_in * r_in);
   const std::string scenario = R"({"format": "crowdmpm-scenario", "version": 1, "name": "ring corridor",
     "domain": {"min": [-9.5, -9.5], "max": [9.5, 9.5], "cell_size": 0.5},
-    "time": {"dt": 0.01, "duration": )" + num(warmup + measure + 1) + R"(},
-    "geometry": {"walls": [{"arc": {"center": [0, 0], "radius": )" + num(r_out + 0.1) + R"(, "from": 0, "to": 360}, "thickness": 0.2}],
-                 "obstacles": [{"circle": {"center": [0, 0], "radius": )" + num(r_in) + R"(}}]},
-    "groups": [{"spawn": {"circle": {"center": [0, 0], "radius": )" + num(r_out) + R"(}}, "density": )" + num(rho) + R"(,
+    "time": {"dt": 0.01, "duration": )" + format_number(warmup + measure + 1) + R"(},
+    "geometry": {"walls": [{"arc": {"center": [0, 0], "radius": )" + format_number(r_out + 0.1) + R"(, "from": 0, "to": 360}, "thickness": 0.2}],
+                 "obstacles": [{"circle": {"center": [0, 0], "radius": )" + format_number(r_in) + R"(}}]},
+    "groups": [{"spawn": {"circle": {"center": [0, 0], "radius": )" + format_number(r_out) + R"(}}, "density": )" + format_number(rho) + R"(,
                 "desired_speed": 1.34, "behaviour": {"type": "orbit", "center": [0, 0]}}]})";
   Simulation sim(ScenarioDef::parse_text(scenario), model, threads);
   const World& w = sim.world();
@@ -79,12 +70,12 @@ CorridorResult ring_corridor_speed(const Model& model, double rho, double warmup
 BottleneckResult bottleneck_flow(const Model& model, double b, double density, int threads) {
   const double W = std::max(8.0, b + 6), depth = 6, y0 = W / 2 - b / 2, y1 = W / 2 + b / 2;
   const std::string scenario = R"({"format": "crowdmpm-scenario", "version": 1, "name": "bottleneck",
-    "domain": {"min": [0, 0], "max": [)" + num(depth + 2.4) + ", " + num(W) + R"(], "cell_size": 0.5},
+    "domain": {"min": [0, 0], "max": [)" + format_number(depth + 2.4) + ", " + format_number(W) + R"(], "cell_size": 0.5},
     "time": {"dt": 0.01, "duration": 400},
-    "geometry": {"walls": [{"points": [[)" + num(depth + 0.2) + ", 0], [" + num(depth + 0.2) + ", " + num(y0) + R"(]], "thickness": 0.4},
-                           {"points": [[)" + num(depth + 0.2) + ", " + num(y1) + "], [" + num(depth + 0.2) + ", " + num(W) + R"(]], "thickness": 0.4}],
-                 "exits": [{"id": "out", "rect": [)" + num(depth + 1.4) + ", 0, " + num(depth + 2.4) + ", " + num(W) + R"(]}]},
-    "groups": [{"spawn": {"rect": [0, 0, )" + num(depth) + ", " + num(W) + R"(]}, "density": )" + num(density) + R"(,
+    "geometry": {"walls": [{"points": [[)" + format_number(depth + 0.2) + ", 0], [" + format_number(depth + 0.2) + ", " + format_number(y0) + R"(]], "thickness": 0.4},
+                           {"points": [[)" + format_number(depth + 0.2) + ", " + format_number(y1) + "], [" + format_number(depth + 0.2) + ", " + format_number(W) + R"(]], "thickness": 0.4}],
+                 "exits": [{"id": "out", "rect": [)" + format_number(depth + 1.4) + ", 0, " + format_number(depth + 2.4) + ", " + format_number(W) + R"(]}]},
+    "groups": [{"spawn": {"rect": [0, 0, )" + format_number(depth) + ", " + format_number(W) + R"(]}, "density": )" + format_number(density) + R"(,
                 "desired_speed": 1.34, "behaviour": {"type": "goal", "target": "out"}}]})";
   Simulation sim(ScenarioDef::parse_text(scenario), model, threads);
   BottleneckResult r;

@@ -52,21 +52,22 @@ Eigen::Matrix4d local_jacobian(F&& f, const Eigen::Vector4d& at) {
 
 // Adjoint of drive_point for agent p of the stored state w (heading_prev: its heading before
 // the step): given a_bar = dL/da_p and h_bar = dL/dheading_p, adds dL/dx_p, dL/dv_p and the
-// gradients of tau, v0_scale and the force terms' parameters. With e the desired direction,
+// gradients of tau, v0_scale and the force terms' parameters (f_own: scratch, one value a term). With e the desired direction,
 // f = prod_t f_t the terms' speed factors and a_t their accelerations:
 //   a = (s v0 f e - v) / tau + sum_t a_t;   heading = e (or v / |v| where e = 0).
 // The terms' parts are exact (their own vector-Jacobian products); e(x) comes from the
 // behaviour's navigation field, a pointwise function whose Jacobian is taken by central
 // differences (DESIGN.md section 4 allows local Jacobians of pointwise functions).
 void drive_adjoint(const StepInputs& in, const Behaviour& beh, const World& w, size_t p, const Vec2& heading_prev,
-                   const Vec2& a_bar, const Vec2& h_bar, double u_bar_later, Vec2& x_bar, Vec2& v_bar, ModelGradient& out) {
+                   const Vec2& a_bar, const Vec2& h_bar, double u_bar_later, Vec2& x_bar, Vec2& v_bar, ModelGradient& out,
+                   std::vector<double>& f_own) {
   const MaterialParams& P = in.model.params;
   const Vec2 x = w.x[p], v = w.v[p];
   const TermPoint pt{x, v, heading_prev, w.group[p], in.time};
   const bool driven = beh.kind != Behaviour::Kind::None;
   const Vec2 e = desired_direction(in, beh, x);
   // The speed factors, each term's own and the product of the others'.
-  std::vector<double> f_own(in.terms.size(), 1.0);
+  f_own.assign(in.terms.size(), 1.0);
   double f = 1;
   for (size_t t = 0; t < in.terms.size(); ++t) {
     if (!in.terms[t].applies(pt.group)) continue;
@@ -210,6 +211,7 @@ ModelGradient WindowGradient::run(Simulation& sim, int steps, const StateLossGra
   TransferAdjoint xadj;
   std::vector<Vec2> hx, he;  // the headway adjoint's dL/dx and dL/de
   std::vector<double> hu;    // and its dL/du
+  std::vector<double> f_own;  // drive_adjoint's scratch: each term's speed factor
   const MaterialParams& P = model.params;
   for (int k = steps - 1; k >= 0; --k) {
     if (checkpointing && (k == steps - 1 || k % K == K - 1)) {
@@ -276,7 +278,7 @@ ModelGradient WindowGradient::run(Simulation& sim, int steps, const StateLossGra
     for (size_t p = 0; p < n; ++p) {
       Vec2 gx = Vec2::Zero(), gv = Vec2::Zero();
       drive_adjoint(in, behaviours[static_cast<size_t>(w.behaviour[p])], w, p, st.heading[p], xadj.accel[p],
-                    tadj.heading[p] + he[p], hu[p], gx, gv, out);
+                    tadj.heading[p] + he[p], hu[p], gx, gv, out, f_own);
       xb[p] = xadj.x[p] + tadj.x[p] + hx[p] + gx;
       vb[p] = xadj.v[p] + tadj.v[p] + gv;
       out.params.comfort_distance += tadj.comfort[p];

@@ -38,13 +38,10 @@ ParamMap::ParamMap(const Fitted& f, std::vector<std::string> scalars, bool netwo
   for (size_t i = 0; i < scalars_.size(); ++i) {
     const std::string& s = scalars_[i];
     const ParamInfo& info = param_info(s);  // throws for unknown names
-    if (info.field == &MaterialParams::time_gap && m.params.time_gap == 0)
-      throw Error("time_gap is 0 in the starting model (the headway adaptation is off): start from a value above 0 to learn it");
-    if (!info.learnable_in(m)) {
+    if (const std::string why = info.not_learnable_in(m); !why.empty()) {
       std::string known;
       for (const auto& n : learnable_params(m)) known += (known.empty() ? "" : ", ") + n;
-      throw Error("parameter '" + s + "' is not learnable for the " + material_name(m.material) + " model (learnable: " +
-                  known + ")");
+      throw Error("parameter '" + s + "' cannot be learned: " + why + " (learnable: " + known + ")");
     }
     for (size_t j = 0; j < i; ++j)
       if (scalars_[j] == s) throw Error("parameter '" + s + "' is listed twice");
@@ -314,7 +311,12 @@ class WindowScorer {
   WindowScorer(const std::vector<ScenarioDef>& scenarios, const std::vector<TrainWindow>& train,
                const std::vector<TrainWindow>& val, const ParamMap& map, const TrainOptions& o)
       : scenarios_(scenarios), train_(train), val_(val), map_(map), one_(o), pool_(std::max(1, o.threads)) {
-    for (const auto& s : scenarios) windowed_.push_back(window_scenario(s, false));
+    for (const auto& s : scenarios) {
+      windowed_.push_back(window_scenario(s, false));
+      bool learns = false;
+      for (const Term& t : s.terms) learns = learns || t.learned_count() > 0;
+      learns_terms_.push_back(learns);
+    }
     one_.threads = 1;
   }
 
@@ -325,7 +327,8 @@ class WindowScorer {
     pool_.parallel_for(val_.size(), [&](size_t b, size_t e) {
       for (size_t j = b; j < e; ++j) {
         try {
-          ls[j] = window_loss(venue(m, val_[j].dataset), val_[j], m.model, one_, nullptr);
+          ScenarioDef scratch;
+          ls[j] = window_loss(venue(m, val_[j].dataset, scratch), val_[j], m.model, one_, nullptr);
         } catch (const UnstableError&) {
           broke[j] = 1;
         } catch (const Error& err) {
@@ -384,11 +387,13 @@ class WindowScorer {
   };
   static double nan() { return std::numeric_limits<double>::quiet_NaN(); }
 
-  // A window's venue with the force terms being fitted.
-  ScenarioDef venue(const Fitted& f, size_t d) const {
-    ScenarioDef s = windowed_[d];
-    s.terms = f.terms[d];
-    return s;
+  // A window's venue with the force terms being fitted; the windowed scenario itself (no copy)
+  // when none of its terms is learned.
+  const ScenarioDef& venue(const Fitted& f, size_t d, ScenarioDef& scratch) const {
+    if (!learns_terms_[d]) return windowed_[d];
+    scratch = windowed_[d];
+    scratch.terms = f.terms[d];
+    return scratch;
   }
   std::string window_name(const TrainWindow& w) const {
     return "window at frame " + std::to_string(w.start.frame) + " of dataset " + std::to_string(w.dataset) + " (" +
@@ -399,7 +404,8 @@ class WindowScorer {
     WindowResult r;
     try {
       ModelGradient mg;
-      const ScenarioDef sc = venue(m, w.dataset);
+      ScenarioDef scratch;
+      const ScenarioDef& sc = venue(m, w.dataset, scratch);
       r.loss = window_loss(sc, w, m.model, one_, want_grad && m.model.is_continuum() ? &mg : nullptr);
       if (want_grad && std::isfinite(r.loss)) {
         r.grad = m.model.is_continuum() ? map_.gradient(m, mg, w.dataset) : central_differences(m, sc, w);
@@ -435,6 +441,7 @@ class WindowScorer {
 
   const std::vector<ScenarioDef>& scenarios_;
   std::vector<ScenarioDef> windowed_;
+  std::vector<char> learns_terms_;  // per venue: has terms marked "learn"
   const std::vector<TrainWindow>& train_;
   const std::vector<TrainWindow>& val_;
   const ParamMap& map_;

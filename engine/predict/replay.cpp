@@ -47,20 +47,17 @@ ReplayResult replay_recording(const ScenarioDef& scenario, const Model& model, c
   // Each person's first appearance, and the velocity over their first half second.
   struct Arrival {
     double time;
-    long id;
+    long frame;
     Vec2 x, v;
   };
-  std::map<long, Arrival> first;
+  std::map<long, Arrival> first;  // by id
   const long half = std::max(1L, std::lround(0.5 * rec.framerate));
-  std::unordered_map<long, std::pair<long, Vec2>> start;
   for (const TrackPoint& p : rec.points) {
-    auto it = start.find(p.id);
-    if (it == start.end()) {
-      start[p.id] = {p.frame, Vec2(p.x, p.y)};
-      first[p.id] = Arrival{static_cast<double>(p.frame - rec.frame_min()) / rec.framerate, p.id, Vec2(p.x, p.y), Vec2::Zero()};
-    } else if (p.frame - it->second.first == half) {
-      first[p.id].v = (Vec2(p.x, p.y) - it->second.second) * (rec.framerate / static_cast<double>(half));
-    }
+    const Vec2 x(p.x, p.y);
+    auto [it, added] = first.try_emplace(p.id, Arrival{static_cast<double>(p.frame - rec.frame_min()) / rec.framerate, p.frame, x,
+                                                       Vec2::Zero()});
+    if (!added && p.frame - it->second.frame == half)
+      it->second.v = (x - it->second.x) * (rec.framerate / static_cast<double>(half));
   }
   std::vector<Arrival> arrivals;
   for (const auto& kv : first) arrivals.push_back(kv.second);

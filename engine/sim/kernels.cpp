@@ -131,9 +131,10 @@ void drive_point(const StepInputs& in, const Behaviour& beh, int group, const Ve
   double factor = 1;
   apply_terms(in.terms, TermPoint{x, v, prev_heading, group, in.time}, a, factor);
   Vec2 dir = desired_direction(in, beh, x);
-  if (beh.kind != Behaviour::Kind::None) a = (P.v0_scale * v0 * factor * dir - v) / P.tau + a;
+  const double u = P.v0_scale * v0 * factor;  // the free speed
+  if (beh.kind != Behaviour::Kind::None) a = (u * dir - v) / P.tau + a;
   accel = a;
-  free_speed = beh.kind != Behaviour::Kind::None && dir.squaredNorm() > 0 ? P.v0_scale * v0 * factor : 0;
+  free_speed = beh.kind != Behaviour::Kind::None && dir.squaredNorm() > 0 ? u : 0;
   if (dir.squaredNorm() > 0) heading = dir;
   else if (v.squaredNorm() > 1e-8) heading = v.normalized();
   else heading = prev_heading;

@@ -136,13 +136,15 @@ MaterialParams zero_params() {
   return z;
 }
 
-bool ParamInfo::learnable_in(const Model& m) const {
-  if (m.material == MaterialKind::Elastic) return false;
-  // The fluid is symmetric: its tension scale is fixed at 1.
-  if (m.material == MaterialKind::Fluid && field == &MaterialParams::tension_scale) return false;
-  // A time gap of 0 switches the headway adaptation off; it is learned from a start above 0.
-  if (field == &MaterialParams::time_gap && m.params.time_gap == 0) return false;
-  return (learned_by & (m.is_continuum() ? kContinuum : kSocialForce)) != 0;
+std::string ParamInfo::not_learnable_in(const Model& m) const {
+  if (m.material == MaterialKind::Elastic) return "the elastic material is not learned";
+  if (m.material == MaterialKind::Fluid && field == &MaterialParams::tension_scale)
+    return "the fluid material is symmetric: tension_scale is fixed at 1";
+  if (field == &MaterialParams::time_gap && m.params.time_gap == 0)
+    return "time_gap is 0 in the starting model (the headway adaptation is off): start from a value above 0 to learn it";
+  if ((learned_by & (m.is_continuum() ? kContinuum : kSocialForce)) == 0)
+    return std::string(name) + " is not learned by the " + material_name(m.material) + " model";
+  return {};
 }
 
 const ParamInfo& param_info(const std::string& name) {

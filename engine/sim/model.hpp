@@ -49,7 +49,9 @@ struct ParamInfo {
   const char* unit;
   unsigned learned_by;  // LearnedBy bits
   bool sets_up_world;   // read when a world is built (agent sizes, placement, navigation): fixed afterwards
-  bool learnable_in(const class Model& m) const;
+  // Empty when model m learns this parameter; otherwise the reason it does not.
+  std::string not_learnable_in(const class Model& m) const;
+  bool learnable_in(const class Model& m) const { return not_learnable_in(m).empty(); }
 };
 const std::vector<ParamInfo>& param_table();
 // The row of a parameter; throws Error listing the known names.
