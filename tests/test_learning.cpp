@@ -202,7 +202,7 @@ TEST_CASE("the grid velocity loss trains too: drive parameters recovered from ve
   const double at_truth = window_loss(window_scenario(s, false), val[0], truth, o, nullptr);
   std::printf("grid velocity training: validation %.3e -> %.3e (truth %.3e); tau %.3f (0.4), v0_scale %.3f (1.1)\n",
               r.initial_validation, r.best_validation, at_truth, r.model.get("tau"), r.model.get("v0_scale"));
-  CHECK(r.best_validation < 0.2 * r.initial_validation);
+  CHECK(r.best_validation - at_truth < 0.1 * (r.initial_validation - at_truth));  // 90% of the way to the truth
   CHECK(r.best_validation < 1.2 * at_truth);
   CHECK(r.model.get("v0_scale") == Approx(1.1).epsilon(0.05));
   CHECK(r.model.get("tau") == Approx(0.4).epsilon(0.1));

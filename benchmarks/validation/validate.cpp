@@ -2,7 +2,7 @@
 // in a ring corridor and the flow through bottlenecks of several widths, for any model file.
 //
 //   validate fd --model M [--densities 0.5,1,...] [--threads N] [--warmup S] [--measure S]
-//   validate bottleneck --model M [--widths 0.4,0.8,...] [--threads N] [--density D]
+//   validate bottleneck --model M [--widths 0.4,0.8,...] [--threads N] [--density D | --density D1,D2,...]
 //   validate replay --model M --scenario S --trajectories T --line x0,y0,x1,y1 [--curve CSV]
 //   validate measure --trajectories T --box x0,y0,x1,y1   (classic density and speed, 1 /s)
 //
@@ -11,8 +11,9 @@
 // free speed). After `warmup` seconds, the mean speed along the corridor of everyone is sampled
 // every second for `measure` seconds: the classic density (people / corridor area) and mean speed
 // of a closed system in steady state.
-// bottleneck: a waiting crowd at `density` (3.5 /m^2) fills a room 6 m deep in front of a wall
-// with an opening of width b (0.4 m thick) and leaves through it; the flow is the passages
+// bottleneck: a waiting crowd at `density` (3.5 /m^2; one value for every width, or one per
+// width) fills a room 6 m deep in front of a wall with an opening of width b (0.4 m thick) and
+// leaves through it; the flow is the passages
 // between the 20th and the 80th percentile over their time span (persons/s).
 // Both print CSV on stdout and report the peak count of people in any 1 m x 1 m box (sampled
 // every second on a 0.25 m lattice of box positions).
@@ -70,13 +71,16 @@ int run_fd(const Model& model, const std::vector<double>& densities, int threads
   return 0;
 }
 
-int run_bottleneck(const Model& model, const std::vector<double>& widths, int threads, double density) {
-  std::printf("b,agents,J,passages_used,t20,t80,peak_per_m2,wall_seconds\n");
-  for (double b : widths) {
+int run_bottleneck(const Model& model, const std::vector<double>& widths, int threads, const std::vector<double>& density) {
+  if (density.size() != 1 && density.size() != widths.size())
+    usage("--density needs one value, or one per width (" + std::to_string(widths.size()) + ")");
+  std::printf("b,density,agents,J,passages_used,t20,t80,peak_per_m2,wall_seconds\n");
+  for (size_t i = 0; i < widths.size(); ++i) {
+    const double b = widths[i], rho = density[density.size() == 1 ? 0 : i];
     const auto t0 = std::chrono::steady_clock::now();
-    const BottleneckResult r = bottleneck_flow(model, b, density, threads);
+    const BottleneckResult r = bottleneck_flow(model, b, rho, threads);
     const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    std::printf("%g,%zu,%.3f,%zu,%.2f,%.2f,%d,%.1f\n", b, r.agents, r.flow, r.passages, r.t20, r.t80, r.peak_per_m2, secs);
+    std::printf("%g,%g,%zu,%.3f,%zu,%.2f,%.2f,%d,%.1f\n", b, rho, r.agents, r.flow, r.passages, r.t20, r.t80, r.peak_per_m2, secs);
     std::fflush(stdout);
   }
   return 0;
@@ -124,7 +128,8 @@ int main(int argc, char** argv) {
   std::vector<double> densities = {0.5, 1, 1.5, 2, 2.5, 3, 3.5, 4, 4.5, 5, 5.5, 6};
   std::vector<double> widths = {0.4, 0.8, 1.0, 1.2, 1.8, 2.4, 3.0, 5.0};
   int threads = 1;
-  double warmup = 20, measure = 30, density = 3.5;
+  double warmup = 20, measure = 30;
+  std::vector<double> density = {3.5};
   std::string scenario, trajectories, curve;
   std::vector<double> line;
   for (int i = 2; i < argc; ++i) {
@@ -139,7 +144,7 @@ int main(int argc, char** argv) {
     else if (a == "--threads") threads = std::max(1, std::atoi(value().c_str()));
     else if (a == "--warmup") warmup = parse_list(value()).at(0);
     else if (a == "--measure") measure = parse_list(value()).at(0);
-    else if (a == "--density") density = parse_list(value()).at(0);
+    else if (a == "--density") density = parse_list(value());
     else if (a == "--scenario") scenario = value();
     else if (a == "--trajectories") trajectories = value();
     else if (a == "--curve") curve = value();

@@ -72,8 +72,8 @@ BottleneckResult bottleneck_flow(const Model& model, double b, double density, i
   const std::string scenario = R"({"format": "crowdmpm-scenario", "version": 1, "name": "bottleneck",
     "domain": {"min": [0, 0], "max": [)" + format_number(depth + 2.4) + ", " + format_number(W) + R"(], "cell_size": 0.5},
     "time": {"dt": 0.01, "duration": 400},
-    "geometry": {"walls": [{"points": [[)" + format_number(depth + 0.2) + ", 0], [" + format_number(depth + 0.2) + ", " + format_number(y0) + R"(]], "thickness": 0.4},
-                           {"points": [[)" + format_number(depth + 0.2) + ", " + format_number(y1) + "], [" + format_number(depth + 0.2) + ", " + format_number(W) + R"(]], "thickness": 0.4}],
+    "geometry": {"obstacles": [{"rect": [)" + format_number(depth) + ", 0, " + format_number(depth + 0.4) + ", " + format_number(y0) + R"(]},
+                               {"rect": [)" + format_number(depth) + ", " + format_number(y1) + ", " + format_number(depth + 0.4) + ", " + format_number(W) + R"(]}],
                  "exits": [{"id": "out", "rect": [)" + format_number(depth + 1.4) + ", 0, " + format_number(depth + 2.4) + ", " + format_number(W) + R"(]}]},
     "groups": [{"spawn": {"rect": [0, 0, )" + format_number(depth) + ", " + format_number(W) + R"(]}, "density": )" + format_number(density) + R"(,
                 "desired_speed": 1.34, "behaviour": {"type": "goal", "target": "out"}}]})";

@@ -157,7 +157,7 @@ void kernel_transfer_adjoint(const StepInputs& in, const Grid& shape, const Worl
     const Vec2 v_new = (1 - alpha) * (w.v[p] + dv) + alpha * v_pic + dt * (w.accel[p] + w.pair_force[p] / m);
     const bool speed_clamped = v_new.norm() > P.max_speed;
     const double J_unclamped = w.J[p] * (1 + dt * Cn.trace());
-    const bool J_clamped = J_unclamped < 0.2 || J_unclamped > j_max;
+    const bool J_clamped = J_unclamped < kMinJ || J_unclamped > j_max;
     Vec2 xbp = x_bar[p], vbp = v_bar[p];
     if (after_hook) {
       const Vec2 v_after = speed_clamped ? Vec2(v_new * (P.max_speed / v_new.norm())) : v_new;

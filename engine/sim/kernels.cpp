@@ -374,7 +374,7 @@ void kernel_g2p(const StepInputs& in, const Grid& g, World& w, ThreadPool& pool)
         w.F[p] = (Mat2::Identity() + dt * C) * w.F[p];
         w.J[p] = w.F[p].determinant();
       } else {
-        w.J[p] = std::clamp(w.J[p] * (1 + dt * C.trace()), 0.2, j_max);
+        w.J[p] = std::clamp(w.J[p] * (1 + dt * C.trace()), kMinJ, j_max);
       }
       w.x[p] += dt * v;
     }

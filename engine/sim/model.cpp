@@ -85,8 +85,14 @@ Model Model::parse(const JsonReader& r, const std::string& source) {
   if (r.string("format", std::nullopt) != "crowdmpm-model")
     r.fail_at("format", "must be \"crowdmpm-model\"");
   int version = r.integer("version", 1, 1000, std::nullopt);
-  if (version != 1) r.fail_at("version", "unsupported model version " + std::to_string(version) + " (this engine reads 1)");
+  if (version > kLatestVersion)
+    r.fail_at("version", "unsupported model version " + std::to_string(version) + " (this engine reads 1 and 2)");
   Model m;
+  m.version = version;
+  if (version == 1) {  // the defaults of version 1 for parameters its files leave out
+    m.params.time_gap = 0;
+    m.params.rest_density = 2;
+  }
   m.source = source;
   m.name = r.string("name", std::string());
   m.description = r.string("description", std::string());
@@ -119,7 +125,7 @@ Model Model::parse(const JsonReader& r, const std::string& source) {
 json Model::to_json() const {
   json j;
   j["format"] = "crowdmpm-model";
-  j["version"] = 1;
+  j["version"] = version;
   if (!name.empty()) j["name"] = name;
   if (!description.empty()) j["description"] = description;
   j["material"] = material_name(material);

@@ -18,7 +18,7 @@ struct MaterialParams {
   double v0_scale = 1;           // multiplies every agent's desired speed
   double comfort_distance = 0.3; // c, m (default for agents that do not set their own)
   double body_radius = 0.2;      // r_b, m (default for agents)
-  double rest_density = 2;       // rho0, persons/m^2: particle volume V = 1/rho0
+  double rest_density = 4;       // rho0, persons/m^2: particle volume V = 1/rho0 (model version 1: 2)
   double mass = 1;               // per person
   double poisson_ratio = 0.3;    // elastic material only
   double wall_friction = 0;      // tangential velocity removed at walls, fraction per contact
@@ -26,7 +26,7 @@ struct MaterialParams {
   double contact_epsilon = 0.01; // m: smallest gap used in phi(d) = -log((d - 2 r_b)/c)
   double wall_clearance = 0.1;   // m: particle centres are kept at least this far from solids
   double alignment_time = 0.5;   // s: particle velocities relax towards the local grid flow (PIC share dt/this)
-  double time_gap = 0;           // s: T of the headway speed adaptation (0: off); speed <= gap ahead / T
+  double time_gap = 0.8;         // s: T of the headway speed adaptation (0: off; model version 1: 0); speed <= gap ahead / T
   double headway_width = 0.5;    // lane half-width of the headway, as a fraction of r_p + r_q
   // social_force model (Helbing, Farkas & Vicsek 2000), per unit mass (their values / 80 kg):
   double sf_A = 25;              // m/s^2: strength of the exponential repulsion A exp((r_pq - d)/B)
@@ -66,6 +66,14 @@ class Model {
   TractionNet traction;  // used by the crowd material only
   std::string source;    // where it was loaded from, for messages
   std::string name, description;  // free text, kept through load and save
+  // Model format version. 2: each particle's reference volume comes from the local density when
+  // it enters the world (J = min(1, rho0 / rho), world.hpp), so the pressure is referenced to the
+  // rest density rho0. 1: J = 1 wherever a person is placed (pressure referenced to the spawn
+  // layout; files of version 1 keep that meaning).
+  int version = 2;
+  static constexpr int kLatestVersion = 2;
+  // Whether J starts from the local density (continuum crowd and fluid of version 2).
+  bool density_referenced() const { return version >= 2 && is_continuum() && material != MaterialKind::Elastic; }
 
   static Model default_model();
   // The default model's parameters as another kind (fluid: tension_scale 1; no traction

@@ -70,6 +70,7 @@ Simulation::Simulation(const ScenarioDef& scenario, const Model& model, int thre
     throw Error(scenario_.source + ": " + e.what());
   }
   spawn_sources();
+  if (model_.density_referenced()) reference_volumes(world_, 0, model_.params.rest_density);
   prepare_derived();
 }
 
@@ -191,7 +192,9 @@ EntityId Simulation::add_agent(const AgentDef& def) {
   max_comfort_ = std::max(max_comfort_, def.comfort_distance);
   max_v0_ = std::max(max_v0_, def.desired_speed);
   if (neighbour_reach() > neighbours_.range) init_neighbours(neighbour_reach());
-  return world_.add(def);
+  const EntityId e = world_.add(def);
+  if (model_.density_referenced()) reference_volumes(world_, world_.size() - 1, model_.params.rest_density);
+  return e;
 }
 
 // Hexagonal lattice at the density asked for, jittered without overlap, inside the region and
@@ -308,6 +311,7 @@ long Simulation::pending_spawns() const {
 
 void Simulation::spawn_sources() {
   const double t = time();
+  const size_t first_new = world_.size();
   for (size_t gi = 0; gi < scenario_.groups.size(); ++gi) {
     const GroupDef& g = scenario_.groups[gi];
     if (!g.is_source || t < g.start || t >= g.end) continue;
@@ -335,7 +339,8 @@ void Simulation::spawn_sources() {
       ++source_spawned_[gi];
       ++spawned_;
     }
-  }
+  }  if (world_.size() > first_new && model_.density_referenced())
+    reference_volumes(world_, first_new, model_.params.rest_density);
 }
 
 // A pair interacts up to r_p + r_q + c_p (or the social force's margin); the headway looks

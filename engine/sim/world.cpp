@@ -1,6 +1,7 @@
 #include "engine/sim/world.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <cstring>
 #include <numeric>
 
@@ -51,6 +52,55 @@ void World::remove_at(size_t i) {
   swap_pop(behaviour, i); swap_pop(group, i);
   swap_pop(accel, i); swap_pop(heading, i); swap_pop(free_speed, i); swap_pop(pair_force, i); swap_pop(pair_virial, i);
   swap_pop(pressure, i);
+}
+
+std::vector<double> local_density(const World& w, size_t first, double R) {
+  const size_t n = w.size();
+  std::vector<double> rho(first < n ? n - first : 0, 0.0);
+  if (rho.empty()) return rho;
+  // Cell lists of size R over the bounding box of every agent.
+  Vec2 lo = w.x[0], hi = w.x[0];
+  for (const Vec2& x : w.x) {
+    lo = lo.cwiseMin(x);
+    hi = hi.cwiseMax(x);
+  }
+  // Cells of at least R, and at most ~4 n + 1 of them (a crowd spread over a huge area).
+  const Vec2 ext = hi - lo;
+  const double h = std::max({R, std::sqrt(ext.x() * ext.y() / (4.0 * static_cast<double>(n) + 1)), 1e-9 * ext.norm()});
+  const long nx = static_cast<long>(ext.x() / h) + 1, ny = static_cast<long>(ext.y() / h) + 1;
+  auto cell_of = [&](const Vec2& x, long& i, long& j) {
+    i = std::clamp(static_cast<long>((x.x() - lo.x()) / h), 0L, nx - 1);
+    j = std::clamp(static_cast<long>((x.y() - lo.y()) / h), 0L, ny - 1);
+  };
+  std::vector<long> start(static_cast<size_t>(nx * ny) + 1, 0), order(n), key(n);
+  for (size_t p = 0; p < n; ++p) {
+    long i, j;
+    cell_of(w.x[p], i, j);
+    key[p] = j * nx + i;
+    ++start[static_cast<size_t>(key[p]) + 1];
+  }
+  for (size_t k = 1; k < start.size(); ++k) start[k] += start[k - 1];
+  std::vector<long> cursor(start.begin(), start.end() - 1);
+  for (size_t p = 0; p < n; ++p) order[static_cast<size_t>(cursor[static_cast<size_t>(key[p])]++)] = static_cast<long>(p);
+  const double norm = 2 / (M_PI * R * R), inv_r2 = 1 / (R * R);
+  for (size_t p = first; p < n; ++p) {
+    long ci, cj;
+    cell_of(w.x[p], ci, cj);
+    double sum = 0;
+    for (long j = std::max(0L, cj - 1); j <= std::min(ny - 1, cj + 1); ++j)
+      for (long i = std::max(0L, ci - 1); i <= std::min(nx - 1, ci + 1); ++i)
+        for (long s = start[static_cast<size_t>(j * nx + i)]; s < start[static_cast<size_t>(j * nx + i) + 1]; ++s) {
+          const double r2 = (w.x[static_cast<size_t>(order[static_cast<size_t>(s)])] - w.x[p]).squaredNorm() * inv_r2;
+          if (r2 < 1) sum += 1 - r2;
+        }
+    rho[p - first] = norm * sum;
+  }
+  return rho;
+}
+
+void reference_volumes(World& w, size_t first, double rest_density) {
+  const std::vector<double> rho = local_density(w, first, kDensityRadius);
+  for (size_t p = first; p < w.size(); ++p) w.J[p] = std::clamp(rest_density / rho[p - first], kMinJ, 1.0);
 }
 
 long World::index_of(EntityId e) const {

@@ -27,7 +27,7 @@ class World {
   std::vector<Vec2> x, v;        // position (m), velocity (m/s)
   std::vector<Mat2> C;           // APIC affine velocity (1/s)
   std::vector<Mat2> F;           // deformation gradient (elastic material only; identity otherwise)
-  std::vector<double> J;         // volume ratio
+  std::vector<double> J;         // volume ratio to the reference area 1/rho0 (set on entry, see reference_volumes)
   // Agent components.
   std::vector<EntityId> id;
   std::vector<double> radius, comfort, v0;
@@ -55,5 +55,18 @@ class World {
   std::vector<long> slot_;  // id -> index, -1 once removed
   EntityId next_id_ = 1;
 };
+
+// Persons per m^2 at each agent of [first, w.size()), counting every agent (itself included)
+// with the kernel W(r) = 2 / (pi R^2) (1 - r^2 / R^2) for r < R, which integrates to 1 over the
+// plane: a uniform crowd gives its density, a person alone 2 / (pi R^2).
+std::vector<double> local_density(const World& w, size_t first, double R);
+
+// Model v2's reference volumes: J = clamp(rho0 / rho, j_min, 1) for the agents [first, size())
+// with rho their local_density over kDensityRadius, so that a crowd entering denser than rest
+// starts compressed (and pressed apart by the material) and one sparser starts at rest.
+constexpr double kDensityRadius = 1.0;  // m
+// The smallest volume ratio of the crowd and fluid materials (also the clamp of the step).
+constexpr double kMinJ = 0.2;
+void reference_volumes(World& w, size_t first, double rest_density);
 
 }  // namespace crowdmpm
