@@ -127,6 +127,45 @@ for name, r in results("replay"):
     L.append("| %s | %s | %s | %s / %s | %s | %s | %s | %s |" % (name, r["run"], r["people"], r["passages_recorded"],
              r["passages_simulated"], r["J_recorded"], r["J_simulated"], r["ratio"],
              "yes" if abs(float(r["ratio"]) - 1) <= 0.15 else "**no**"))
+# Reference curves for the pictures: Weidmann and the acceptance band on a fine grid, the Juelich medians.
+with open(os.path.join(work, "fd_reference.csv"), "w") as f:
+    f.write("rho,weidmann,band_lo,band_hi\n")
+    for k in range(10, 461):
+        rho = k / 100
+        lo, hi = band(rho)
+        f.write("%.2f,%.4f,%.4f,%.4f\n" % (rho, weid(rho), max(lo, 0), hi))
+with open(os.path.join(work, "fd_juelich.csv"), "w") as f:
+    f.write("rho,speed\n" + "".join("%.2f,%.4f\n" % (c, jue[c]) for c in sorted(jue)))
+L += ["", "## Pictures", "", "`fd.png` (fundamental diagram), `bottleneck.png` (J(b)) and `nt_<run>.png` (N(t) of each replay),",
+      "beside this file.", ""]
 open(out, "w").write("\n".join(L) + "\n")
 PY
+# A picture per check (validate chart), beside results.md.
+colours=(1f77b4 ff7f0e 2ca02c 9467bd 8c564b)
+here=benchmarks/validation
+fd_series=(--series "acceptance band|$work/fd_reference.csv|rho|band_lo|band|bbbbbb|band_hi"
+           --series "Weidmann 1993|$work/fd_reference.csv|rho|weidmann|line|d62728"
+           --series "Juelich corridor (Hermes uo runs, computed)|$work/fd_juelich.csv|rho|speed|points|000000")
+bn_series=(--series "measured (Kretz, Seyfried, Mueller, Hermes)|$ref/bottleneck_flow.csv|b_m|J_per_s|points|000000")
+for i in "${!models[@]}"; do
+  name=$(basename "${models[$i]}" .json)
+  fd_series+=(--series "$name|$work/fd_$name.csv|rho|speed_mean|linepoints|${colours[$i]}")
+  bn_series+=(--series "$name|$work/bottleneck_$name.csv|b|J|linepoints|${colours[$i]}")
+done
+"$v" chart --out "$here/fd.png" --title "Fundamental diagram: ring corridor 2.5 m wide, desired speed 1.34 m/s" \
+    --x "density (persons/m^2)" --y "mean speed (m/s)" "${fd_series[@]}"
+"$v" chart --out "$here/bottleneck.png" --title "Bottleneck flow from a waiting crowd" \
+    --x "bottleneck width b (m)" --y "flow J (persons/s)" "${bn_series[@]}"
+for r in "${replays[@]}"; do
+  read -r scen traj line <<< "$r"
+  run=$(basename "$traj" .txt)
+  first=$(basename "${models[0]}" .json)
+  nt_series=(--series "recorded|$work/nt_${first}_$run.csv|t|recorded|line|000000")
+  for i in "${!models[@]}"; do
+    name=$(basename "${models[$i]}" .json)
+    nt_series+=(--series "$name|$work/nt_${name}_$run.csv|t|simulated|line|${colours[$i]}")
+  done
+  "$v" chart --out "$here/nt_$run.png" --title "Whole-run replay of $run: passages N(t) through the bottleneck" \
+      --x "time (s)" --y "passages N(t)" "${nt_series[@]}"
+done
 cat "$out"

@@ -5,6 +5,9 @@
 //   validate bottleneck --model M [--widths 0.4,0.8,...] [--threads N] [--density D | --density D1,D2,...]
 //   validate replay --model M --scenario S --trajectories T --line x0,y0,x1,y1 [--curve CSV]
 //   validate measure --trajectories T --box x0,y0,x1,y1   (classic density and speed, 1 /s)
+//   validate chart --out PNG --title T --x LABEL --y LABEL --series SPEC [--series SPEC ...]
+//     SPEC = NAME|CSV|XCOL|YCOL|STYLE|RRGGBB[|YCOL2]: columns of a CSV with a header row (lines
+//     starting with # skipped), STYLE line, points, linepoints or band (YCOL..YCOL2 shaded)
 //
 // fd: a ring corridor 2.5 m wide (inner radius 6 m, so it bends gently), people placed at the
 // density asked for, walking around it (behaviour "orbit", desired speed 1.34 m/s, Weidmann's
@@ -26,6 +29,7 @@
 #include <vector>
 
 #include "engine/analysis/validation.hpp"
+#include "engine/io/chart.hpp"
 #include "engine/observe/measure.hpp"
 #include "engine/predict/replay.hpp"
 
@@ -36,7 +40,8 @@ namespace {
   std::fprintf(stderr, "validate: %s\nusage: validate fd|bottleneck|replay --model M [--densities LIST | --widths LIST] "
                        "[--threads N] [--warmup S] [--measure S] [--density D]\n"
                        "       validate replay --model M --scenario S --trajectories T --line x0,y0,x1,y1 [--curve CSV]\n"
-                       "       validate measure --trajectories T --box x0,y0,x1,y1\n",
+                       "       validate measure --trajectories T --box x0,y0,x1,y1\n"
+                       "       validate chart --out PNG --title T --x LABEL --y LABEL --series NAME|CSV|XCOL|YCOL|STYLE|RRGGBB[|YCOL2] ...\n",
                msg.c_str());
   std::exit(2);
 }
@@ -121,6 +126,67 @@ int run_measure(const std::string& trajectories, const std::vector<double>& box)
 }
 }  // namespace
 
+std::vector<std::string> split(const std::string& s, char sep) {
+  std::vector<std::string> out;
+  size_t b = 0;
+  for (size_t e; (e = s.find(sep, b)) != std::string::npos; b = e + 1) out.push_back(s.substr(b, e - b));
+  out.push_back(s.substr(b));
+  return out;
+}
+
+// One chart series from columns of a CSV file (rows whose cells there are not numbers are skipped).
+ChartSeries read_series(const std::string& spec) {
+  const std::vector<std::string> f = split(spec, '|');
+  if (f.size() != 6 && f.size() != 7) usage("--series needs NAME|CSV|XCOL|YCOL|STYLE|RRGGBB[|YCOL2], got '" + spec + "'");
+  ChartSeries s;
+  s.name = f[0];
+  const std::string& style = f[4];
+  s.style = style == "line" ? ChartSeries::Style::Line : style == "points" ? ChartSeries::Style::Points
+          : style == "linepoints" ? ChartSeries::Style::LinePoints : style == "band" ? ChartSeries::Style::Band
+          : (usage("--series style must be line, points, linepoints or band, got '" + style + "'"), ChartSeries::Style::Line);
+  if (s.style == ChartSeries::Style::Band && f.size() != 7) usage("a band series needs YCOL2 (its upper edge): " + spec);
+  if (f[5].size() != 6 || f[5].find_first_not_of("0123456789abcdefABCDEF") != std::string::npos)
+    usage("--series colour must be RRGGBB in hexadecimal, got '" + f[5] + "'");
+  const long rgb = std::strtol(f[5].c_str(), nullptr, 16);
+  s.rgb = {static_cast<int>(rgb >> 16), static_cast<int>((rgb >> 8) & 255), static_cast<int>(rgb & 255)};
+  std::FILE* in = std::fopen(f[1].c_str(), "r");
+  if (!in) throw Error(f[1] + ": cannot open the CSV for the chart");
+  std::vector<std::string> header;
+  char line[4096];
+  int cx = -1, cy = -1, cy2 = -1;
+  while (std::fgets(line, sizeof line, in)) {
+    std::string l(line);
+    while (!l.empty() && (l.back() == '\n' || l.back() == '\r')) l.pop_back();
+    if (l.empty() || l[0] == '#') continue;
+    const std::vector<std::string> cells = split(l, ',');
+    if (header.empty()) {
+      header = cells;
+      for (size_t i = 0; i < cells.size(); ++i) {
+        if (cells[i] == f[2]) cx = static_cast<int>(i);
+        if (cells[i] == f[3]) cy = static_cast<int>(i);
+        if (f.size() == 7 && cells[i] == f[6]) cy2 = static_cast<int>(i);
+      }
+      if (cx < 0 || cy < 0 || (f.size() == 7 && cy2 < 0)) {
+        std::fclose(in);
+        throw Error(f[1] + ": the header has no column '" + (cx < 0 ? f[2] : cy < 0 ? f[3] : f[6]) + "'");
+      }
+      continue;
+    }
+    auto num = [&](int c, double& v) {
+      if (c >= static_cast<int>(cells.size())) return false;
+      char* end = nullptr;
+      v = std::strtod(cells[static_cast<size_t>(c)].c_str(), &end);
+      return end != cells[static_cast<size_t>(c)].c_str() && *end == 0 && std::isfinite(v);
+    };
+    double x, y, y2 = 0;
+    if (!num(cx, x) || !num(cy, y) || (cy2 >= 0 && !num(cy2, y2))) continue;
+    s.points.emplace_back(x, y);
+    if (cy2 >= 0) s.upper.emplace_back(x, y2);
+  }
+  std::fclose(in);
+  return s;
+}
+
 int main(int argc, char** argv) {
   if (argc < 2) usage("needs fd or bottleneck");
   const std::string what = argv[1];
@@ -130,7 +196,9 @@ int main(int argc, char** argv) {
   int threads = 1;
   double warmup = 20, measure = 30;
   std::vector<double> density = {3.5};
-  std::string scenario, trajectories, curve;
+  std::string scenario, trajectories, curve, out_png;
+  Chart chart;
+  std::vector<std::string> series;
   std::vector<double> line;
   for (int i = 2; i < argc; ++i) {
     const std::string a = argv[i];
@@ -149,15 +217,26 @@ int main(int argc, char** argv) {
     else if (a == "--trajectories") trajectories = value();
     else if (a == "--curve") curve = value();
     else if (a == "--line" || a == "--box") line = parse_list(value(), true);
+    else if (a == "--out") out_png = value();
+    else if (a == "--title") chart.title = value();
+    else if (a == "--x") chart.x_label = value();
+    else if (a == "--y") chart.y_label = value();
+    else if (a == "--series") series.push_back(value());
     else usage("unknown option '" + a + "'");
   }
   try {
+    if (what == "chart") {
+      if (out_png.empty() || series.empty()) usage("chart needs --out PNG and at least one --series");
+      for (const std::string& spec : series) chart.series.push_back(read_series(spec));
+      write_chart_png(out_png, chart);
+      return 0;
+    }
     const Model model = model_path.empty() || model_path == "default" ? Model::default_model() : Model::load(model_path);
     if (what == "fd") return run_fd(model, densities, threads, warmup, measure);
     if (what == "bottleneck") return run_bottleneck(model, widths, threads, density);
     if (what == "replay") return run_replay(model, scenario, trajectories, line, threads, curve);
     if (what == "measure") return run_measure(trajectories, line);
-    usage("unknown check '" + what + "' (fd or bottleneck)");
+    usage("unknown check '" + what + "' (fd, bottleneck, replay, measure or chart)");
   } catch (const Error& e) {
     std::fprintf(stderr, "validate: %s\n", e.what());
     return 1;
