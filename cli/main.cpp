@@ -28,7 +28,7 @@ const char* kUsage =
     "  validate SCENARIO [--model MODEL]\n"
     "                      check a scenario (and model) and print what it contains\n"
     "  predict --scenario S --trajectories T [--model M]... [--observe S] [--horizon S]\n"
-    "          [--stride S] [--windows N] [--desired-speed observed|scenario]\n"
+    "          [--stride S] [--windows N] [--desired-speed observed|scenario|free]\n"
     "          [--threads N] [--out DIR]\n"
     "                      roll recorded states forward and report ADE/FDE and grid\n"
     "                      velocity errors against the recording, for constant velocity,\n"
@@ -77,9 +77,11 @@ const char* kPredictHelp =
     "  --trajectories T   PeTrack text file (id frame x y [z], '# framerate:' header)\n"
     "  --model M          crowdmpm-model JSON to evaluate; repeat for several (the untrained\n"
     "                     default, the scenario's model or the built-in one, is always shown)\n"
-    "  --desired-speed observed|scenario\n"
+    "  --desired-speed observed|scenario|free\n"
     "                     desired speed of the observed people (default observed: each\n"
-    "                     person's walking speed over the last second, times v0_scale)\n"
+    "                     person's walking speed over the last second; free: the 90th\n"
+    "                     percentile of their walking speed along their track so far;\n"
+    "                     scenario: the group's), times v0_scale\n"
     "  --observe S        seconds of recording before the first window (default 2)\n"
     "  --horizon S        seconds to predict (default 4)\n"
     "  --stride S         seconds between window starts (default: the horizon)\n"
@@ -130,9 +132,11 @@ const char* kTrainHelp =
     "  --eval-every N     iterations between validation passes (default 5)\n"
     "  --patience N       validation passes without improvement before stopping (default 6)\n"
     "  --seed N           minibatch sampling seed (default 1)\n"
-    "  --desired-speed observed|scenario\n"
-    "                     desired speed of the recorded people: their own walking speed\n"
-    "                     (default) or the scenario group's, times v0_scale\n"
+    "  --desired-speed observed|scenario|free\n"
+    "                     desired speed of the recorded people: their own walking speed at\n"
+    "                     the window's start (default), the scenario group's (drawn from its\n"
+    "                     distribution if it has one), or each person's free speed (90th\n"
+    "                     percentile of their walking speed along their track so far), times v0_scale\n"
     "  --threads N        windows simulated and differentiated in parallel, one per thread;\n"
     "                     the model does not depend on N (default 1)\n"
     "  --quiet            no progress lines\n";
@@ -212,8 +216,8 @@ Args parse_args(int argc, char** argv, int first) {
       if (s == "--stride") a.stride_given = true;
     } else if (s == "--desired-speed") {
       a.desired_speed = value("--desired-speed");
-      if (a.desired_speed != "observed" && a.desired_speed != "scenario")
-        usage_error("--desired-speed must be 'observed' or 'scenario', got '" + a.desired_speed + "'");
+      if (a.desired_speed != "observed" && a.desired_speed != "scenario" && a.desired_speed != "free")
+        usage_error("--desired-speed must be 'observed', 'scenario' or 'free', got '" + a.desired_speed + "'");
     } else if (s == "--params") {
       std::string v = value("--params");
       json list = json::array();
@@ -303,7 +307,7 @@ int cmd_simulate(const Args& a) {
 }
 
 DesiredSpeed desired_speed_of(const Args& a) {
-  return a.desired_speed == "scenario" ? DesiredSpeed::Scenario : DesiredSpeed::Observed;
+  return a.desired_speed == "scenario" ? DesiredSpeed::Scenario : a.desired_speed == "free" ? DesiredSpeed::Free : DesiredSpeed::Observed;
 }
 
 

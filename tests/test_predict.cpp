@@ -57,6 +57,36 @@ TEST_CASE("velocities and walking speeds from a recording sampled every third fr
   CHECK(observe_at(t, 31, 0.5, 1.0).ids.empty());  // nobody recorded at frame 31
 }
 
+TEST_CASE("free speeds: the 90th percentile of a person's walking speed along the whole track", "[predict]") {
+  // Person 1 walks 1.5 m/s for 2 s, then queues at 0.2 m/s for 8 s; person 2 stands still;
+  // person 3 is seen for 0.5 s only (shorter than the 1 s speed window).
+  std::ostringstream text;
+  text << "# framerate: 10\n";
+  double x = 0;
+  for (int f = 0; f <= 100; ++f) {
+    text << "1 " << f << " " << x << " 0\n";
+    x += f < 20 ? 0.15 : 0.02;
+    text << "2 " << f << " 5 5\n";
+    if (f <= 5) text << "3 " << f << " " << 0.1 * f << " 9\n";
+  }
+  const TrajectorySet t = TrajectorySet::parse(text.str(), "queue");
+  const auto v = free_speeds(t, 1.0);
+  REQUIRE(v.count(1) == 1);
+  CHECK(v.at(1) > 1.0);  // the unhindered start, not the queue's 0.2 m/s (the median)
+  CHECK(v.at(1) <= 1.5 + 1e-9);
+  REQUIRE(v.count(2) == 1);
+  CHECK(v.at(2) == Approx(0).margin(1e-12));
+  CHECK(v.count(3) == 0);
+  // Up to a frame only (what a prediction may know): in the queue at frame 60, person 1's free
+  // speed is still that of the start; observe_at carries it as free_speed.
+  CHECK(free_speeds(t, 1.0, 60).at(1) == Approx(1.5));
+  const ObservedState s = observe_at(t, 60, 0.5, 1.0);
+  REQUIRE(s.ids.size() == 2);  // person 3 has left
+  REQUIRE(s.ids[0] == 1);
+  CHECK(s.speed[0] == Approx(0.2));
+  CHECK(s.free_speed[0] == Approx(1.5));
+}
+
 TEST_CASE("a predictor that is off by a fixed offset reports that offset", "[predict]") {
   TrajectorySet t = straight_walkers();
   PredictOptions o;

@@ -4,6 +4,7 @@
 #include "engine/learn/optim.hpp"
 
 #include <algorithm>
+#include <unordered_map>
 #include <filesystem>
 #include <cmath>
 #include <limits>
@@ -692,9 +693,8 @@ TrainJob parse_train_job(const json& request, const std::string& base_dir) {
     o.learn_network = op->boolean("learn_network", o.learn_network);
     o.loss = op->one_of("loss", {"trajectory", "grid_velocity"}, "trajectory") == "trajectory" ? TrainOptions::Loss::Trajectory
                                                                                                 : TrainOptions::Loss::GridVelocity;
-    o.desired_speed = op->one_of("desired_speed", {"observed", "scenario"}, "observed") == "observed"
-                          ? DesiredSpeed::Observed
-                          : DesiredSpeed::Scenario;
+    const std::string speed_mode = op->one_of("desired_speed", {"observed", "scenario", "free"}, "observed");
+    o.desired_speed = speed_mode == "observed" ? DesiredSpeed::Observed : speed_mode == "scenario" ? DesiredSpeed::Scenario : DesiredSpeed::Free;
     if (auto ps = op->get("params")) {
       // [] learns no scalar parameter: only the network and the force terms marked "learn".
       for (size_t i = 0; i < ps->size(); ++i) o.params.push_back(ps->item(i).as_string());

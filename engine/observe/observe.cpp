@@ -37,7 +37,40 @@ ObservedState observe_at(const TrajectorySet& t, long frame, double velocity_win
                           ? (x - il->second.second).norm() * (t.framerate / static_cast<double>(frame - il->second.first))
                           : s.v.back().norm());
   }
+  const std::unordered_map<long, double> free = free_speeds(t, speed_window, frame);
+  for (size_t i = 0; i < s.ids.size(); ++i) {
+    auto it = free.find(s.ids[i]);
+    s.free_speed.push_back(it != free.end() ? std::max(it->second, s.speed[i]) : s.speed[i]);
+  }
   return s;
+}
+
+const char* desired_speed_name(DesiredSpeed d) {
+  return d == DesiredSpeed::Scenario ? "scenario" : d == DesiredSpeed::Free ? "free" : "observed";
+}
+
+std::unordered_map<long, double> free_speeds(const TrajectorySet& t, double speed_window, long last) {
+  const long lag = std::max(1L, std::lround(speed_window * t.framerate));
+  std::unordered_map<long, std::vector<std::pair<long, Vec2>>> tracks;
+  for (long f = t.frame_min(); f <= std::min(last, t.frame_max()); ++f) {
+    auto [b, e] = t.frame(f);
+    for (auto p = b; p != e; ++p) tracks[p->id].emplace_back(f, Vec2(p->x, p->y));
+  }
+  std::unordered_map<long, double> out;
+  for (auto& [id, track] : tracks) {
+    std::vector<double> speeds;
+    size_t j = 0;
+    for (size_t i = 0; i < track.size(); ++i) {
+      while (j < i && track[i].first - track[j + 1].first >= lag) ++j;  // latest sample at least lag frames back
+      if (track[i].first - track[j].first < lag) continue;
+      speeds.push_back((track[i].second - track[j].second).norm() * t.framerate / static_cast<double>(track[i].first - track[j].first));
+    }
+    if (speeds.empty()) continue;
+    const size_t k = std::min(speeds.size() - 1, static_cast<size_t>(0.9 * static_cast<double>(speeds.size())));
+    std::nth_element(speeds.begin(), speeds.begin() + static_cast<long>(k), speeds.end());
+    out[id] = speeds[k];
+  }
+  return out;
 }
 
 ScenarioDef window_scenario(const ScenarioDef& scenario, bool keep_exits) {
@@ -84,9 +117,10 @@ WindowSim start_window(const ScenarioDef& sc, const Model& model, const Observed
     a.body_radius = std::clamp(0.5 * nearest[i], 0.05, model.params.body_radius);
     a.comfort_distance = model.params.comfort_distance;
     // An observed speed beyond what the model allows (a tracking glitch) is clamped.
-    a.desired_speed = o.desired_speed == DesiredSpeed::Observed && i < s.speed.size()
-                          ? std::clamp(s.speed[i], 0.0, std::min(12.0, model.params.max_speed))
-                          : sc.groups[0].desired_speed;
+    const std::vector<double>& own = o.desired_speed == DesiredSpeed::Free ? s.free_speed : s.speed;
+    a.desired_speed = o.desired_speed != DesiredSpeed::Scenario && i < own.size()
+                          ? std::clamp(own[i], 0.0, std::min(12.0, model.params.max_speed))
+                          : sim.draw_speed(sc.groups[0]);
     if (!std::isfinite(a.desired_speed)) a.desired_speed = 0;
     a.behaviour = sim.behaviour_of_group(0);
     a.group = 0;

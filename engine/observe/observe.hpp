@@ -3,6 +3,8 @@
 // simulation started from that state (what training windows and predictions both start from).
 #include <memory>
 #include <string>
+#include <limits>
+#include <unordered_map>
 #include <vector>
 
 #include "engine/io/trajectory.hpp"
@@ -16,13 +18,28 @@ struct ObservedState {
   std::vector<long> ids;
   std::vector<Vec2> x, v;
   std::vector<double> speed;  // m/s over the speed window (over the velocity window if the history is shorter)
+  // m/s: each person's free walking speed so far, the 90th percentile of their speed over the
+  // speed window along their track up to this frame (free_speeds), and at least `speed`.
+  std::vector<double> free_speed;
 };
 
 ObservedState observe_at(const TrajectorySet& t, long frame, double velocity_window, double speed_window = 1);
 
-// Where a window's agents get their desired speed: the scenario's group (times the model's
-// v0_scale), or each person's own observed walking speed (times v0_scale).
-enum class DesiredSpeed { Scenario, Observed };
+// Each person's free walking speed, estimated as the 90th percentile of their speed over
+// speed_window (s) along their recorded track up to frame `last` (the person unhindered, on
+// entering or leaving, rather than held back in a queue). Recorded id -> m/s; people seen for
+// less than speed_window by then are left out.
+std::unordered_map<long, double> free_speeds(const TrajectorySet& t, double speed_window,
+                                             long last = std::numeric_limits<long>::max());
+
+// Where a window's agents get their desired speed: the scenario's first group (its speed, or
+// drawn per person from its distribution, desired_speed {mean, sd, min, max}; times the model's
+// v0_scale), each person's own observed walking speed (times v0_scale), or each person's free
+// speed so far (ObservedState::free_speed, times v0_scale): what they walked when unhindered, not
+// the speed a queue holds them to at the window's start.
+enum class DesiredSpeed { Scenario, Observed, Free };
+// "scenario", "observed" or "free" (the JSON and command-line spelling).
+const char* desired_speed_name(DesiredSpeed d);
 
 struct WindowOptions {
   int threads = 1;

@@ -188,8 +188,10 @@ PredictJob parse_predict_job(const json& request) {
   std::vector<std::string> models;
   if (auto ms = r.get("models"))
     for (size_t i = 0; i < ms->size(); ++i) models.push_back(ms->item(i).as_string());
-  const DesiredSpeed ds =
-      r.one_of("desired_speed", {"observed", "scenario"}, "observed") == "observed" ? DesiredSpeed::Observed : DesiredSpeed::Scenario;
+  const std::string speed_mode = r.one_of("desired_speed", {"observed", "scenario", "free"}, "observed");
+  const DesiredSpeed ds = speed_mode == "observed" ? DesiredSpeed::Observed
+                          : speed_mode == "scenario" ? DesiredSpeed::Scenario
+                                                     : DesiredSpeed::Free;
   return make_predict_job(scenario, trajectories, models, o, ds);
 }
 
@@ -210,7 +212,7 @@ json prediction_json(const PredictJob& job, const std::vector<PredictionReport>&
             {"observe_s", job.options.observe},
             {"horizon_s", job.options.horizon},
             {"stride_s", job.options.stride},
-            {"desired_speed", job.desired_speed == DesiredSpeed::Observed ? "observed" : "scenario"},
+            {"desired_speed", desired_speed_name(job.desired_speed)},
             {"units", "metres, m/s"},
             {"methods", json::array()}};
   for (const auto& r : reports) j["methods"].push_back(report_to_json(r));

@@ -95,6 +95,9 @@ class Simulation {
   StepInputs step_inputs() const { return StepInputs{model_, scenario_.geo, navs_, behaviours_, scenario_.terms, scenario_.dt, time()}; }
   const NeighbourGrid& neighbour_grid() const { return neighbours_; }
   int behaviour_for_target(const std::string& target);  // goal behaviour to an exit/goal id
+  // A person's free speed for group g: the group's, or drawn from its truncated normal
+  // distribution with the simulation's random stream (no draw when it has none).
+  double draw_speed(const GroupDef& g);
 
  private:
   void build_behaviours();
@@ -102,7 +105,6 @@ class Simulation {
   void resolve(Behaviour& b);
   int nav_for(const std::string& target);
   void place_group(size_t gi);
-  double draw_speed(const GroupDef& g);
   void spawn_sources();
   void retire_at_exits();
   void check_finite();
