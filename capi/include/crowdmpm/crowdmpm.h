@@ -167,7 +167,7 @@ CMPM_API cmpm_Status cmpm_World_LoadTraction(cmpm_WorldId world, const char* tra
  *    "options": {"window": 2, "stride": 1, "iterations": 120, "batch": 4, "learning_rate": 0.03,
  *                "clip": 1, "validation": 0.25, "eval_every": 5, "patience": 6, "seed": 1,
  *                "threads": 1, "params": [NAME, ...], "learn_network": true,
- *                "loss": "trajectory" | "grid_velocity", "desired_speed": "observed" | "scenario"}}
+ *                "loss": "trajectory" | "grid_velocity", "desired_speed": "observed" | "scenario" | "free"}}
  * Relative paths resolve from the working directory. Blocks until training ends (seconds to
  * minutes); the result does not depend on "threads". CMPM_ERROR_INVALID_INPUT for a request,
  * scenario, model or recording that does not parse or validate (the message names the JSON
@@ -179,7 +179,7 @@ CMPM_API cmpm_Status cmpm_TrainModel(const char* request_json, const char* out_m
  * errors (ADE/FDE per second of horizon, grid velocity error; the prediction.json format) to
  * out_json_path. request_json:
  *   {"scenario": PATH, "trajectories": PATH, "models": [PATH, ...], "observe": 2, "horizon": 4,
- *    "stride": (horizon), "windows": 0 (all), "threads": 1, "desired_speed": "observed" | "scenario"}
+ *    "stride": (horizon), "windows": 0 (all), "threads": 1, "desired_speed": "observed" | "scenario" | "free"}
  * CMPM_ERROR_INVALID_INPUT as for cmpm_TrainModel, and when observe + horizon exceed the
  * recording. */
 CMPM_API cmpm_Status cmpm_PredictRecording(const char* request_json, const char* out_json_path);
