@@ -209,3 +209,54 @@ TEST_CASE("a run ending between frames does not repeat a frame number", "[units]
   TrajectorySet t = TrajectorySet::read(dir + "/trajectories.txt");  // rejects repeated (id, frame)
   CHECK(t.frame_max() == 10);
 }
+
+TEST_CASE("local density counts a uniform crowd at its density, a person alone at 2/(pi R^2), however far apart", "[units]") {
+  // A hexagonal lattice at 5 persons/m^2, 20 m x 20 m.
+  World w;
+  const double rho = 5, a = std::sqrt(2 / (std::sqrt(3.0) * rho));
+  for (int j = 0; j * a * std::sqrt(3.0) / 2 < 20; ++j)
+    for (int i = 0; i * a < 20; ++i) {
+      AgentDef d;
+      d.position = Vec2(i * a + 0.5 * a * (j & 1), j * a * std::sqrt(3.0) / 2);
+      w.add(d);
+    }
+  const std::vector<double> all = local_density(w, 0, 1.0);
+  REQUIRE(all.size() == w.size());
+  for (size_t p = 0; p < w.size(); ++p)
+    if ((w.x[p] - Vec2(10, 10)).norm() < 5) CHECK(all[p] == Approx(rho).epsilon(0.05));
+  // Version 2's reference volumes at a rest density of 4: J = 4/5 inside, 1 where sparser.
+  reference_volumes(w, 0, 4);
+  for (size_t p = 0; p < w.size(); ++p) {
+    if ((w.x[p] - Vec2(10, 10)).norm() < 5) CHECK(w.J[p] == Approx(0.8).epsilon(0.05));
+    CHECK(w.J[p] <= 1);
+  }
+  // People far apart (a line 1e12 m long): each alone, and the cell lists stay small.
+  World far;
+  for (int k = 0; k < 3; ++k) {
+    AgentDef d;
+    d.position = Vec2(1e12 * k, 5);
+    far.add(d);
+  }
+  for (double r : local_density(far, 0, 1.0)) CHECK(r == Approx(2 / M_PI));
+  CHECK(local_density(far, 3, 1.0).empty());
+}
+
+TEST_CASE("model version 2 starts a dense crowd compressed, version 1 at J = 1", "[units]") {
+  const char* scene = R"({"format": "crowdmpm-scenario", "version": 1, "name": "dense",
+    "domain": {"min": [0, 0], "max": [12, 12], "cell_size": 0.5}, "time": {"dt": 0.01, "duration": 1},
+    "groups": [{"spawn": {"rect": [1, 1, 11, 11]}, "density": 5, "desired_speed": 1, "behaviour": {"type": "none"}}]})";
+  const ScenarioDef s = ScenarioDef::parse_text(scene);
+  Simulation v2(s, Model::default_model(), 1);
+  Simulation v1(s, Model::load(test::repo_path("scenarios/models/v1.json")), 1);
+  REQUIRE(Model::default_model().version == 2);
+  double inside = 0;
+  int n = 0;
+  for (size_t p = 0; p < v2.world().size(); ++p)
+    if ((v2.world().x[p] - Vec2(6, 6)).norm() < 3) {
+      inside += v2.world().J[p];
+      ++n;
+    }
+  REQUIRE(n > 50);
+  CHECK(inside / n == Approx(4.0 / 5).epsilon(0.08));  // rest density 4 over the placed ~5 /m^2
+  for (double J : v1.world().J) CHECK(J == 1.0);
+}

@@ -64,9 +64,11 @@ std::vector<double> local_density(const World& w, size_t first, double R) {
     lo = lo.cwiseMin(x);
     hi = hi.cwiseMax(x);
   }
-  // Cells of at least R, and at most ~4 n + 1 of them (a crowd spread over a huge area).
+  // Cells of at least R, and O(n) of them however far apart people are: at most ~4 n + 1 cells
+  // of area and 4 n + 1 along either side (people along one line far apart).
   const Vec2 ext = hi - lo;
-  const double h = std::max({R, std::sqrt(ext.x() * ext.y() / (4.0 * static_cast<double>(n) + 1)), 1e-9 * ext.norm()});
+  const double cells = 4.0 * static_cast<double>(n) + 1;
+  const double h = std::max({R, std::sqrt(ext.x() * ext.y() / cells), ext.x() / cells, ext.y() / cells});
   const long nx = static_cast<long>(ext.x() / h) + 1, ny = static_cast<long>(ext.y() / h) + 1;
   auto cell_of = [&](const Vec2& x, long& i, long& j) {
     i = std::clamp(static_cast<long>((x.x() - lo.x()) / h), 0L, nx - 1);
