@@ -59,7 +59,9 @@ void write_chart_png(const std::string& path, const Chart& c, int width, int hei
   const cv::Scalar ink(40, 40, 40), grid(225, 225, 225);
   // Grid and ticks.
   const double xs = tick_step(xlo, xhi, 8), ys = tick_step(ylo, yhi, 6);
-  for (double x = std::ceil(xlo / xs - 1e-9) * xs; x <= xhi + 1e-9 * xs; x += xs) {
+  // Ticks counted, not only compared: a step below the spacing of doubles would never end.
+  int ticks = 0;
+  for (double x = std::ceil(xlo / xs - 1e-9) * xs; x <= xhi + 1e-9 * xs && ticks < 50; x += xs, ++ticks) {
     const int px = static_cast<int>(std::lround(X(x)));
     cv::line(img, {px, top}, {px, bottom}, grid, 1);
     const std::string t = tick_label(x, xs);
@@ -67,7 +69,8 @@ void write_chart_png(const std::string& path, const Chart& c, int width, int hei
     const cv::Size sz = cv::getTextSize(t, font, 0.45, 1, &base);
     cv::putText(img, t, {px - sz.width / 2, bottom + 18}, font, 0.45, ink, 1, cv::LINE_AA);
   }
-  for (double y = std::ceil(ylo / ys - 1e-9) * ys; y <= yhi + 1e-9 * ys; y += ys) {
+  ticks = 0;
+  for (double y = std::ceil(ylo / ys - 1e-9) * ys; y <= yhi + 1e-9 * ys && ticks < 50; y += ys, ++ticks) {
     const int py = static_cast<int>(std::lround(Y(y)));
     cv::line(img, {left, py}, {right, py}, grid, 1);
     const std::string t = tick_label(y, ys);

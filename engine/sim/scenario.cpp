@@ -105,6 +105,16 @@ ScenarioDef ScenarioDef::parse(const json& j, const std::string& source, const s
   s.geo.hi = dom.vec2("max", std::nullopt);
   if (!(s.geo.hi.x() > s.geo.lo.x() && s.geo.hi.y() > s.geo.lo.y()))
     dom.fail_at("max", "must be greater than domain.min in both x and y");
+  // Positions are doubles: at 1e8 m from the origin they still resolve 15 nm, far beyond that
+  // the spacing of representable coordinates grows towards body sizes (0.125 m at 1e15 m) and
+  // placement and motion lose their meaning. Venues are placed near the origin.
+  for (const char* key : {"min", "max"}) {
+    const Vec2 v = std::string(key) == "min" ? s.geo.lo : s.geo.hi;
+    if (std::abs(v.x()) > kMaxCoordinate || std::abs(v.y()) > kMaxCoordinate)
+      dom.fail_at(key, "coordinates must lie within +-" + format_number(kMaxCoordinate) + " m of the origin (got [" +
+                           format_number(v.x()) + ", " + format_number(v.y()) +
+                           "]): far from it, doubles cannot resolve positions finely enough; shift the venue towards the origin");
+  }
   s.cell_size = dom.in_range("cell_size", 0.05, 10, 0.5);
   Vec2 ext = s.geo.hi - s.geo.lo;
   if (ext.x() / s.cell_size > 1e6 || ext.y() / s.cell_size > 1e6)

@@ -14,6 +14,9 @@
 
 namespace crowdmpm {
 
+// Largest |coordinate| of a domain's corners (m): beyond it doubles resolve positions too coarsely.
+constexpr double kMaxCoordinate = 1e8;
+
 // A group of people placed at t = 0, or a source spawning them at a rate over a time window.
 struct GroupDef {
   std::string id;

@@ -213,8 +213,13 @@ void Simulation::place_group(size_t gi) {
   double h = 0.05;
   if (hi.x() > lo.x() && hi.y() > lo.y()) {
     h = std::max(0.05, std::sqrt((hi.x() - lo.x()) * (hi.y() - lo.y()) / 4e6));
-    for (double y = lo.y() + h / 2; y < hi.y(); y += h)
-      for (double x = lo.x() + h / 2; x < hi.x(); x += h) free_cells += free_at(Vec2(x, y));
+    // Counted as well as compared: a step below the spacing of doubles there would never end.
+    const long nxs = static_cast<long>(std::ceil((hi.x() - lo.x()) / h)) + 1, nys = static_cast<long>(std::ceil((hi.y() - lo.y()) / h)) + 1;
+    double y = lo.y() + h / 2;
+    for (long j = 0; j < nys && y < hi.y(); ++j, y += h) {
+      double x = lo.x() + h / 2;
+      for (long i = 0; i < nxs && x < hi.x(); ++i, x += h) free_cells += free_at(Vec2(x, y));
+    }
   }
   const double area = static_cast<double>(free_cells) * h * h;
   if (g.count == 0) return;
@@ -255,12 +260,16 @@ void Simulation::place_group(size_t gi) {
     const double off_x = rng_.uniform() * a;
     const double off_y = rng_.uniform() * row;
     const Vec2 off(off_x, off_y);
+    // Counted as well as compared, as the area sampling above.
+    const long rows = static_cast<long>(std::ceil((hi.y() - lo.y()) / row)) + 3, cols = static_cast<long>(std::ceil((hi.x() - lo.x()) / a)) + 3;
     int k = 0;
-    for (double y = lo.y() + off.y() - row; y <= hi.y(); y += row, ++k)
-      for (double x = lo.x() + off.x() - a + (k % 2) * a / 2; x <= hi.x(); x += a) {
+    for (double y = lo.y() + off.y() - row; k < rows && y <= hi.y(); y += row, ++k) {
+      long i = 0;
+      for (double x = lo.x() + off.x() - a + (k % 2) * a / 2; i < cols && x <= hi.x(); x += a, ++i) {
         Vec2 p(x, y);
         if (free_at(p) && !overlaps(p, 2 * r)) pts.push_back(p);
       }
+    }
     if (static_cast<long>(pts.size()) < count) continue;
     // Choose count of them at random (Fisher-Yates on our own generator), keep lattice order.
     std::vector<size_t> idx(pts.size());
