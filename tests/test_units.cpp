@@ -260,3 +260,30 @@ TEST_CASE("model version 2 starts a dense crowd compressed, version 1 at J = 1",
   CHECK(inside / n == Approx(4.0 / 5).epsilon(0.08));  // rest density 4 over the placed ~5 /m^2
   for (double J : v1.world().J) CHECK(J == 1.0);
 }
+
+TEST_CASE("agents added one by one before a step get the same reference volumes in any order", "[units]") {
+  const char* scene = R"({"format": "crowdmpm-scenario", "version": 1, "name": "empty",
+    "domain": {"min": [0, 0], "max": [12, 12], "cell_size": 0.5}, "time": {"dt": 0.01, "duration": 1},
+    "groups": [{"spawn": {"rect": [1, 1, 2, 2]}, "count": 0, "desired_speed": 1, "behaviour": {"type": "none"}}]})";
+  const ScenarioDef s = ScenarioDef::parse_text(scene);
+  std::vector<Vec2> spots;  // a square lattice at 1 / 0.45^2 = 4.9 persons/m^2
+  for (int j = 0; j < 12; ++j)
+    for (int i = 0; i < 12; ++i) spots.emplace_back(3 + 0.45 * i, 3 + 0.45 * j);
+  auto volumes = [&](bool reversed) {
+    Simulation sim(s, Model::default_model(), 1);
+    for (size_t k = 0; k < spots.size(); ++k) {
+      AgentDef a;
+      a.position = spots[reversed ? spots.size() - 1 - k : k];
+      a.behaviour = sim.behaviour_of_group(0);
+      sim.add_agent(a);
+    }
+    std::vector<double> J(spots.size());
+    for (size_t p = 0; p < sim.world().size(); ++p)
+      for (size_t k = 0; k < spots.size(); ++k)
+        if ((sim.world().x[p] - spots[k]).norm() < 1e-12) J[k] = sim.world().J[p];
+    return J;
+  };
+  const std::vector<double> forward = volumes(false), backward = volumes(true);
+  for (size_t k = 0; k < spots.size(); ++k) CHECK(forward[k] == Approx(backward[k]));
+  CHECK(forward[spots.size() / 2 + 6] < 0.9);  // inside the lattice: compressed (4 / ~4.9)
+}

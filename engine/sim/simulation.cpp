@@ -71,6 +71,7 @@ Simulation::Simulation(const ScenarioDef& scenario, const Model& model, int thre
   }
   spawn_sources();
   if (model_.density_referenced()) reference_volumes(world_, 0, model_.params.rest_density);
+  batch_start_ = world_.size();
   prepare_derived();
 }
 
@@ -193,7 +194,9 @@ EntityId Simulation::add_agent(const AgentDef& def) {
   max_v0_ = std::max(max_v0_, def.desired_speed);
   if (neighbour_reach() > neighbours_.range) init_neighbours(neighbour_reach());
   const EntityId e = world_.add(def);
-  if (model_.density_referenced()) reference_volumes(world_, world_.size() - 1, model_.params.rest_density);
+  // People added one by one before a step (a recorded state, a replay's arrivals) are one
+  // batch: each add recomputes the whole batch, so J does not depend on the order of adding.
+  if (model_.density_referenced()) reference_volumes(world_, batch_start_, model_.params.rest_density);
   return e;
 }
 
@@ -424,6 +427,7 @@ void Simulation::step() {
   mark();
   spawn_sources();
   mark();
+  batch_start_ = world_.size();
   if (profiling_) ++profile_.steps;
 }
 

@@ -133,6 +133,9 @@ class Simulation {
   double time_at_dt_change_ = 0;
   bool failed_ = false;  // the state became non-finite: no further steps
   long spawned_ = 0;
+  // First agent added through add_agent since the last step (or construction): the batch whose
+  // reference volumes each add recomputes, so that all of them see the whole batch.
+  size_t batch_start_ = 0;
   double max_radius_ = 0, max_comfort_ = 0, max_v0_ = 0;  // over agents added so far (for the cell lists)
   std::vector<int> exit_of_;        // scratch of retire_at_exits
   std::vector<size_t> first_bad_;   // scratch of check_finite
