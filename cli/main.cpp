@@ -39,7 +39,12 @@ const char* kUsage =
     "                      the simulator; writes a model JSON the simulator loads\n"
     "  help [COMMAND]      show help\n"
     "\n"
-    "Run 'crowdmpm <command> --help' for the options of one command.\n";
+    "Run 'crowdmpm <command> --help' for the options of one command.\n"
+    "\n"
+    "input options (every command):\n"
+    "  --max-input-mb N   refuse input files above N MiB (default 256)\n"
+    "  --allow-outside-paths\n"
+    "                     let a scenario name model and extends files outside its folder\n";
 
 const char* kSimulateHelp =
     "usage: crowdmpm simulate SCENARIO --out DIR [options]\n"
@@ -161,6 +166,7 @@ struct Args {
   std::string material;  // train: start from the default parameters of this model kind
   json train = json::object();  // train: the "options" of a training request (parse_train_job)
   bool stride_given = false;
+  InputPolicy input;  // --max-input-mb, --allow-outside-paths
 };
 
 [[noreturn]] void usage_error(const std::string& msg);
@@ -245,6 +251,12 @@ Args parse_args(int argc, char** argv, int first) {
       if (v.empty() || *end || !std::isfinite(d)) usage_error(s + " must be a number, got '" + v + "'");
       a.train[key] = d;
     }
+    else if (s == "--max-input-mb") {
+      a.input.max_bytes = static_cast<uint64_t>(
+          parse_double(s, value("--max-input-mb"), 1e-3, 1e9, "a size in MiB in [0.001, 1e9]") * 1024 * 1024);
+    } else if (s == "--allow-outside-paths") {
+      a.input.allow_outside_paths = true;
+    }
     else if (s == "--windows") {
       std::string v = value("--windows");
       char* end = nullptr;
@@ -286,9 +298,9 @@ int cmd_simulate(const Args& a) {
   if (a.help) { std::fputs(kSimulateHelp, stdout); return 0; }
   if (a.positional.size() != 1) usage_error("simulate needs exactly one SCENARIO file");
   if (a.out.empty()) usage_error("simulate needs --out DIR");
-  ScenarioDef s = ScenarioDef::load(a.positional[0]);
+  ScenarioDef s = ScenarioDef::load(a.positional[0], a.input);
   if (a.duration > 0) s.duration = a.duration;
-  Model m = !a.model.empty() ? Model::load(a.model) : s.model_or_default();
+  Model m = !a.model.empty() ? Model::load(a.model, a.input) : s.model_or_default();
   RunOptions opt;
   opt.out_dir = a.out;
   opt.threads = a.threads;
@@ -327,6 +339,7 @@ int cmd_predict(const Args& a) {
   po.stride = a.stride > 0 ? a.stride : a.horizon;
   po.threads = a.threads;
   po.max_windows = a.windows;
+  po.input = a.input;
   const PredictJob job = load_predict_job(a.scenario, a.trajectories, a.models, po, desired_speed_of(a));
   if (po.observe + po.horizon > job.recording.duration())
     usage_error("--observe + --horizon (" + format_number(po.observe + po.horizon) + " s) exceed the recording (" +
@@ -407,6 +420,7 @@ int cmd_train(const Args& a) {
   options["threads"] = a.threads;
   options["desired_speed"] = a.desired_speed;
   request["options"] = options;
+  request["input"] = {{"max_bytes", a.input.max_bytes}, {"allow_outside_paths", a.input.allow_outside_paths}};
   const TrainJob job = parse_train_job(request);
   const TrainOptions& o = job.options;
   const bool show = !a.quiet;
@@ -447,8 +461,8 @@ int cmd_train(const Args& a) {
 int cmd_validate(const Args& a) {
   if (a.help) { std::fputs(kValidateHelp, stdout); return 0; }
   if (a.positional.size() != 1) usage_error("validate needs exactly one SCENARIO file");
-  ScenarioDef s = ScenarioDef::load(a.positional[0]);
-  Model m = !a.model.empty() ? Model::load(a.model) : s.model_or_default();
+  ScenarioDef s = ScenarioDef::load(a.positional[0], a.input);
+  Model m = !a.model.empty() ? Model::load(a.model, a.input) : s.model_or_default();
   Simulation sim(s, m, 1);
   std::printf("%s: valid. domain [%g, %g] x [%g, %g] m, cell %g m, dt %g s, duration %g s; %zu solids, %zu exits, "
               "%zu groups/sources, %zu agents placed; material %s\n",

@@ -73,6 +73,15 @@ check "train force term" 0 "$cli" train --scenario "$work/bottleneck_drift.json"
 contains "train force term reports the term" "forces[0].acceleration.x"
 contains "train force term writes the scenario" "drift.bottleneck_drift.json"
 check "simulate fitted scenario" 0 "$cli" simulate "$work/drift.bottleneck_drift.json" --out "$work/fitted" --duration 1 --quiet
+# Bounded, confined input (issue 13): a model named outside the scenario's folder, a device, a
+# file above the limit.
+sed 's|"model": "default"|"model": "/dev/zero"|' "$src/scenarios/bottleneck.json" > "$work/dev_zero.json"
+check "model outside the folder" 1 "$cli" validate "$work/dev_zero.json"
+contains "model outside the folder" "lies outside the folder"
+check "model device" 1 "$cli" validate "$work/dev_zero.json" --allow-outside-paths
+contains "model device" "/dev/zero: is not a regular file"
+check "input limit" 1 "$cli" validate "$src/scenarios/bottleneck.json" --max-input-mb 0.001
+contains "input limit" "above the input limit of"
 check "train nothing to learn" 1 "$cli" train --scenario "$src/scenarios/bottleneck.json" --trajectories "$work/sim/trajectories.txt" \
   --params none --no-network --out "$work/none.json"
 contains "train nothing to learn" "nothing to learn"

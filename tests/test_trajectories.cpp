@@ -32,12 +32,34 @@ TEST_CASE("trajectory text: units, comments, sorting", "[trajectories]") {
 
 TEST_CASE("trajectory text: errors name file and line", "[trajectories]") {
   CHECK_THROWS_WITH(TrajectorySet::parse("# framerate: 10\n1 0 1.0\n", "a.txt"), Catch::Contains("a.txt:2: expected \"id frame x y [z]\""));
-  CHECK_THROWS_WITH(TrajectorySet::parse("# framerate: 10\n1 0 1.0 nan\n", "a.txt"), Catch::Contains("a.txt:2: \"nan\" is not a finite number"));
-  CHECK_THROWS_WITH(TrajectorySet::parse("# framerate: 10\n1 0 1.0 abc\n", "a.txt"), Catch::Contains("\"abc\" is not a number"));
+  CHECK_THROWS_WITH(TrajectorySet::parse("# framerate: 10\n1 0 1.0 nan\n", "a.txt"), Catch::Contains("a.txt:2: column 4 is not a finite number"));
+  CHECK_THROWS_WITH(TrajectorySet::parse("# framerate: 10\n1 0 1.0 abc\n", "a.txt"), Catch::Contains("a.txt:2: column 4 is not a number"));
   CHECK_THROWS_WITH(TrajectorySet::parse("1 0 1 2\n", "b.txt"), Catch::Contains("b.txt: no \"# framerate: N\" header"));
   CHECK_THROWS_WITH(TrajectorySet::parse("# framerate: 10\n1 0 1 2\n1 0 3 4\n", "c.txt"), Catch::Contains("person 1 appears twice in frame 0"));
   CHECK_THROWS_WITH(TrajectorySet::parse("# framerate: 10\n# unit: furlong\n", "d.txt"), Catch::Contains("d.txt:2: unknown unit"));
   CHECK_THROWS_WITH(TrajectorySet::parse("# framerate: 10\n1.5 0 1 2\n", "e.txt"), Catch::Contains("whole numbers"));
+}
+
+// Issue 13: a frame of 1e30 is a whole number >= 2^63; it used to be cast to long out of range
+// (undefined behaviour: it came out negative, passed "frame >= 0", and duration() overflowed).
+TEST_CASE("trajectory text: ids and frames beyond the range of long are refused", "[trajectories]") {
+  CHECK_THROWS_WITH(TrajectorySet::parse("# framerate: 10\n1 1e30 1 2\n", "f.txt"), Catch::Contains("f.txt:2: id and frame must be at most"));
+  CHECK_THROWS_WITH(TrajectorySet::parse("# framerate: 10\n-1e19 0 1 2\n", "g.txt"), Catch::Contains("g.txt:2: id and frame must be at most"));
+  const TrajectorySet t = TrajectorySet::parse("# framerate: 10\n1 0 1 2\n1 1000000000000 1 2\n", "h.txt");
+  CHECK(t.frame_max() == 1000000000000L);
+  CHECK(t.duration() == Approx(1e11));
+}
+
+// Messages never quote what a file holds (it may be a secret the scenario was made to name).
+TEST_CASE("trajectory text: errors do not quote the file's contents", "[trajectories]") {
+  for (const char* text : {"# framerate: 10\n1 0 1 secret\n", "# framerate: secret\n", "# unit: secret\n"}) {
+    try {
+      TrajectorySet::parse(text, "s.txt");
+      FAIL("no error for " << text);
+    } catch (const Error& e) {
+      CHECK(std::string(e.what()).find("secret") == std::string::npos);
+    }
+  }
 }
 
 TEST_CASE("written trajectories read back", "[trajectories]") {

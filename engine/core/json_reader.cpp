@@ -29,17 +29,6 @@ static std::string type_name(const json& v) {
   }
 }
 
-std::string read_text_file(const std::string& path) {
-  std::error_code ec;
-  if (std::filesystem::is_directory(path, ec)) throw Error(path + ": is a folder, not a file");
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw Error(path + ": cannot open file for reading");
-  std::ostringstream s;
-  s << in.rdbuf();
-  if (in.bad()) throw Error(path + ": read error");
-  return s.str();
-}
-
 json parse_json_text(const std::string& text, const std::string& source_name) {
   try {
     return json::parse(text);
@@ -52,6 +41,10 @@ json parse_json_text(const std::string& text, const std::string& source_name) {
     if (at != std::string::npos) std::sscanf(msg.c_str() + at, "at line %zu, column %zu", &line, &col);
     auto colon = msg.find(": ", at == std::string::npos ? 0 : at);
     std::string reason = colon == std::string::npos ? msg : msg.substr(colon + 2);
+    // nlohmann quotes the bytes it last read ("; last read: '...'"): drop them, so that a
+    // message never echoes the contents of a file (which may not be JSON, nor the user's).
+    auto quoted = reason.find("; last read:");
+    if (quoted != std::string::npos) reason.erase(quoted);
     std::string where = line ? ":" + std::to_string(line) + ":" + std::to_string(col) : "";
     throw Error(source_name + where + ": invalid JSON: " + reason);
   } catch (const json::exception& e) {
@@ -62,7 +55,20 @@ json parse_json_text(const std::string& text, const std::string& source_name) {
   }
 }
 
-json load_json_file(const std::string& path) { return parse_json_text(read_text_file(path), path); }
+InputPolicy input_policy(const JsonReader& request) {
+  InputPolicy p;
+  if (auto in = request.get("input")) {
+    in->require_object();
+    in->allow_only({"max_bytes", "allow_outside_paths"});
+    p.max_bytes = static_cast<uint64_t>(in->in_range("max_bytes", 1, 1e15, static_cast<double>(p.max_bytes)));
+    p.allow_outside_paths = in->boolean("allow_outside_paths", false);
+  }
+  return p;
+}
+
+json load_json_file(const std::string& path, const InputPolicy& policy) {
+  return parse_json_text(read_input_file(path, policy), path);
+}
 
 void save_json_file(const json& j, const std::string& path) {
   std::ofstream out(path);

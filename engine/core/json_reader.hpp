@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "engine/core/error.hpp"
+#include "engine/core/input.hpp"
 #include "engine/core/vec.hpp"
 
 namespace crowdmpm {
@@ -15,10 +16,9 @@ using json = nlohmann::json;
 
 // Parses JSON text; a syntax error is reported with the file name, line and column.
 json parse_json_text(const std::string& text, const std::string& source_name);
-json load_json_file(const std::string& path);
+json load_json_file(const std::string& path, const InputPolicy& policy = {});
 // Writes j (indented, with a final newline) to path; throws Error naming the path if it cannot.
 void save_json_file(const json& j, const std::string& path);
-std::string read_text_file(const std::string& path);
 
 class JsonReader {
  public:
@@ -68,5 +68,8 @@ class JsonReader {
 };
 
 std::string format_number(double v);
+
+// A job request's optional "input": {"max_bytes": N, "allow_outside_paths": bool} (InputPolicy).
+InputPolicy input_policy(const JsonReader& request);
 
 }  // namespace crowdmpm

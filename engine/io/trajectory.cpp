@@ -15,6 +15,10 @@ namespace crowdmpm {
 
 namespace {
 
+// Largest |id| and frame: 1e12 frames is 2000 years at 16 fps, and sums and differences of such
+// numbers stay far inside long's range.
+constexpr double kMaxTrackNumber = 1e12;
+
 std::string lower(std::string s) {
   for (auto& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
   return s;
@@ -30,8 +34,8 @@ double unit_scale(const std::string& u) {
 
 }  // namespace
 
-TrajectorySet TrajectorySet::read(const std::string& path, double framerate_override) {
-  return parse(read_text_file(path), path, framerate_override);
+TrajectorySet TrajectorySet::read(const std::string& path, double framerate_override, const InputPolicy& policy) {
+  return parse(read_input_file(path, policy), path, framerate_override);
 }
 
 TrajectorySet TrajectorySet::parse(const std::string& text, const std::string& source, double framerate_override) {
@@ -61,11 +65,11 @@ TrajectorySet TrajectorySet::parse(const std::string& text, const std::string& s
       if (auto v = value_after("framerate"); v && t.framerate == 0) {
         char* end = nullptr;
         double fr = std::strtod(v->c_str(), &end);
-        if (end == v->c_str() || !(fr > 0 && fr < 1e4)) fail("cannot read the frame rate from \"" + line + "\"");
+        if (end == v->c_str() || !(fr > 0 && fr < 1e4)) fail("cannot read the frame rate (a number in (0, 10000)) from the header");
         t.framerate = fr;
       } else if (auto u = value_after("unit"); u && !unit_given) {
         std::string name = u->substr(0, u->find_first_of(" \t"));
-        if (unit_scale(name) == 0) fail("unknown unit \"" + name + "\" (m, cm or mm)");
+        if (unit_scale(name) == 0) fail("unknown unit in the header (known: m, cm, mm)");
         scale = unit_scale(name);
         unit_given = true;
       } else if (!unit_given && c.find("x/") != std::string::npos) {
@@ -85,13 +89,17 @@ TrajectorySet TrajectorySet::parse(const std::string& text, const std::string& s
       char* end = nullptr;
       errno = 0;
       double d = std::strtod(tok.c_str(), &end);
-      if (*end != '\0' || errno == ERANGE) fail("\"" + tok + "\" is not a number");
-      if (!std::isfinite(d)) fail("\"" + tok + "\" is not a finite number");
+      const std::string column = "column " + std::to_string(v.size() + 1);
+      if (*end != '\0' || errno == ERANGE) fail(column + " is not a number");
+      if (!std::isfinite(d)) fail(column + " is not a finite number");
       v.push_back(d);
     }
     if (v.size() < 4 || v.size() > 5) fail("expected \"id frame x y [z]\", got " + std::to_string(v.size()) + " values");
+    // Bounded before the cast to long: a double beyond long's range does not convert (UB).
     if (v[0] != std::floor(v[0]) || v[1] != std::floor(v[1]) || v[1] < 0)
       fail("id and frame must be whole numbers (frame >= 0)");
+    if (std::fabs(v[0]) > kMaxTrackNumber || v[1] > kMaxTrackNumber)
+      fail("id and frame must be at most " + format_number(kMaxTrackNumber) + " in magnitude");
     t.points.push_back({static_cast<long>(v[0]), static_cast<long>(v[1]), v[2] * scale, v[3] * scale});
   }
   if (framerate_override > 0) t.framerate = framerate_override;

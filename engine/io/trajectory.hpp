@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "engine/core/input.hpp"
 #include "engine/sim/world.hpp"
 
 namespace crowdmpm {
@@ -27,7 +28,7 @@ class TrajectorySet {
   // mm; metres if none). framerate_override > 0 replaces the header's frame rate, which is
   // otherwise required. Malformed rows, non-finite numbers, duplicate (id, frame) pairs and a
   // missing frame rate are errors naming file and line.
-  static TrajectorySet read(const std::string& path, double framerate_override = 0);
+  static TrajectorySet read(const std::string& path, double framerate_override = 0, const InputPolicy& policy = {});
   static TrajectorySet parse(const std::string& text, const std::string& source, double framerate_override = 0);
 
   long frame_min() const { return points.empty() ? 0 : points.front().frame; }

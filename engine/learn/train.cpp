@@ -651,26 +651,27 @@ std::string resolve_path(const std::string& base, const std::string& p) {
 TrainJob parse_train_job(const json& request, const std::string& base_dir) {
   JsonReader r(request, "");
   r.require_object();
-  r.allow_only({"datasets", "model", "material", "options"});
+  r.allow_only({"datasets", "model", "material", "options", "input"});
   TrainJob job;
+  job.input = input_policy(r);
   JsonReader ds = r.at("datasets");
   if (ds.size() == 0) ds.fail("needs at least one {\"scenario\", \"trajectories\"} entry");
   for (size_t i = 0; i < ds.size(); ++i) {
     JsonReader d = ds.item(i);
     d.require_object();
     d.allow_only({"scenario", "trajectories"});
-    TrainDataset set{ScenarioDef::load(resolve_path(base_dir, d.string("scenario", std::nullopt))), {}};
+    TrainDataset set{ScenarioDef::load(resolve_path(base_dir, d.string("scenario", std::nullopt)), job.input), {}};
     JsonReader ts = d.at("trajectories");
     if (ts.size() == 0) ts.fail("needs at least one trajectory file");
     for (size_t k = 0; k < ts.size(); ++k) {
       const std::string f = resolve_path(base_dir, ts.item(k).as_string());
-      set.recordings.push_back(TrajectorySet::read(f));
+      set.recordings.push_back(TrajectorySet::read(f, 0, job.input));
       job.files.push_back(f);
     }
     job.data.push_back(std::move(set));
   }
   if (r.has("model") && r.has("material")) r.fail("give \"model\" or \"material\", not both");
-  if (r.has("model")) job.start = Model::load(resolve_path(base_dir, r.string("model", std::nullopt)));
+  if (r.has("model")) job.start = Model::load(resolve_path(base_dir, r.string("model", std::nullopt)), job.input);
   else if (r.has("material"))
     job.start = Model::default_of(r.one_of("material", {"crowd", "fluid", "social_force"}, std::nullopt));
   else job.start = job.data[0].scenario.model_or_default();
@@ -734,16 +735,13 @@ std::vector<std::string> write_fitted_scenarios(const TrainJob& job, const Train
     bool learned = false;
     for (const Term& t : sc.terms) learned = learned || t.learned_count() > 0;
     if (!learned) continue;
-    json j = load_json_file(sc.source);
+    // Self-contained: the "extends" chain applied and the scenario's model written inline, so the
+    // file loads from wherever it is written (paths inside a scenario stay in its folder).
+    json j = ScenarioDef::load_json(sc.source, job.input);
+    if (sc.model) j["model"] = sc.model->to_json();
     json forces = json::array();
     for (const Term& t : r.terms[d]) forces.push_back(t.to_json());
     j["forces"] = forces;
-    const fs::path dir = fs::absolute(fs::path(sc.source)).parent_path();
-    for (const char* key : {"model", "extends"})
-      if (j.contains(key) && j[key].is_string()) {
-        const std::string v = j[key].get<std::string>();
-        if (!v.empty() && v != "default" && fs::path(v).is_relative()) j[key] = (dir / v).lexically_normal().string();
-      }
     const fs::path out = fs::path(model_path).parent_path() /
                          (fs::path(model_path).stem().string() + "." + fs::path(sc.source).stem().string() + ".json");
     save_json_file(j, out.string());

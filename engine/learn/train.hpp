@@ -164,6 +164,7 @@ struct TrainJob {
   std::vector<std::string> files;  // the recordings, for the learned model's description
   Model start;
   TrainOptions options;
+  InputPolicy input;  // limits of the files the job reads ("input" of the request)
 };
 TrainJob parse_train_job(const json& request, const std::string& base_dir = "");
 // The best model of a run, named "learned <kind>" and described: what it was learned from and

@@ -151,12 +151,12 @@ PredictJob load_predict_job(const std::string& scenario_path, const std::string&
   PredictJob job;
   job.scenario_path = scenario_path;
   job.trajectories_path = trajectories_path;
-  job.scenario = ScenarioDef::load(scenario_path);
+  job.scenario = ScenarioDef::load(scenario_path, o.input);
   job.models.push_back(job.scenario.model_or_default());
   job.models[0].name = !job.scenario.model ? std::string("untrained default")
                                            : "scenario's model " + job.models[0].name;
-  for (const auto& p : model_paths) job.models.push_back(Model::load(p));
-  job.recording = TrajectorySet::read(trajectories_path);
+  for (const auto& p : model_paths) job.models.push_back(Model::load(p, o.input));
+  job.recording = TrajectorySet::read(trajectories_path, 0, o.input);
   job.options = o;
   job.desired_speed = ds;
   return job;
@@ -176,7 +176,7 @@ PredictJob make_predict_job(const std::string& scenario_path, const std::string&
 PredictJob parse_predict_job(const json& request) {
   JsonReader r(request, "");
   r.require_object();
-  r.allow_only({"scenario", "trajectories", "models", "observe", "horizon", "stride", "windows", "threads", "desired_speed"});
+  r.allow_only({"scenario", "trajectories", "models", "observe", "horizon", "stride", "windows", "threads", "desired_speed", "input"});
   const std::string scenario = r.string("scenario", std::nullopt);  // first: errors name the first key
   const std::string trajectories = r.string("trajectories", std::nullopt);
   PredictOptions o;
@@ -185,6 +185,7 @@ PredictJob parse_predict_job(const json& request) {
   o.stride = r.in_range("stride", 1e-3, 1e5, o.horizon);
   o.max_windows = r.integer("windows", 0, 1000000, 0);
   o.threads = r.integer("threads", 1, 256, 1);
+  o.input = input_policy(r);
   std::vector<std::string> models;
   if (auto ms = r.get("models"))
     for (size_t i = 0; i < ms->size(); ++i) models.push_back(ms->item(i).as_string());

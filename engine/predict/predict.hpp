@@ -22,6 +22,7 @@ struct PredictOptions {
   int threads = 1;
   int max_windows = 0;      // 0: all windows that fit
   double grid_min_mass = 0.5;  // persons on a node's stencil for it to count in the grid velocity error
+  InputPolicy input;        // limits of the files the job reads
 };
 
 struct HorizonError {
@@ -76,7 +77,8 @@ PredictJob load_predict_job(const std::string& scenario_path, const std::string&
 PredictJob make_predict_job(const std::string& scenario_path, const std::string& trajectories_path,
                             const std::vector<std::string>& model_paths, const PredictOptions& o, DesiredSpeed ds);
 // From JSON: {"scenario": PATH, "trajectories": PATH, "models": [PATH, ...], "observe": 2,
-// "horizon": 4, "stride": (horizon), "windows": 0, "threads": 1, "desired_speed": "observed"}.
+// "horizon": 4, "stride": (horizon), "windows": 0, "threads": 1, "desired_speed": "observed",
+// "input": {"max_bytes": N, "allow_outside_paths": false}}.
 PredictJob parse_predict_job(const json& request);
 std::vector<PredictionReport> run_prediction(const PredictJob& job);
 // The reports as written to prediction.json.

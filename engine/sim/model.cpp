@@ -70,8 +70,8 @@ Model Model::default_of(const std::string& kind) {
   return m;
 }
 
-Model Model::load(const std::string& path) {
-  json j = load_json_file(path);
+Model Model::load(const std::string& path, const InputPolicy& policy) {
+  json j = load_json_file(path, policy);
   try {
     return parse(JsonReader(j, ""), path);
   } catch (const Error& e) {

@@ -80,7 +80,7 @@ class Model {
   // network outside the crowd material). Throws Error for an unknown name.
   static Model default_of(const std::string& kind);
   static Model parse(const JsonReader& r, const std::string& source);
-  static Model load(const std::string& path);
+  static Model load(const std::string& path, const InputPolicy& policy = {});
   json to_json() const;
 
   bool has_traction() const { return material == MaterialKind::Crowd; }

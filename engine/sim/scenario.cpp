@@ -10,10 +10,6 @@ static std::string dir_of(const std::string& path) {
   return pos == std::string::npos ? "." : path.substr(0, pos);
 }
 
-static std::string resolve(const std::string& base, const std::string& p) {
-  return (!p.empty() && p[0] == '/') ? p : base + "/" + p;
-}
-
 static Behaviour parse_behaviour(const JsonReader& r) {
   r.require_object();
   Behaviour b;
@@ -82,7 +78,8 @@ static std::vector<NamedShape> parse_named_shapes(const JsonReader& arr, const s
   return out;
 }
 
-ScenarioDef ScenarioDef::parse(const json& j, const std::string& source, const std::string& base_dir) {
+ScenarioDef ScenarioDef::parse(const json& j, const std::string& source, const std::string& base_dir,
+                               const InputPolicy& policy) {
   JsonReader r(j, "");
   r.require_object();
   r.allow_only({"format", "version", "name", "description", "domain", "time", "seed", "model",
@@ -154,11 +151,10 @@ ScenarioDef ScenarioDef::parse(const json& j, const std::string& source, const s
     if (m->value().is_string()) {
       std::string name = m->as_string();
       if (name != "default") {
-        std::string path = resolve(base_dir, name);
         try {
-          s.model = Model::load(path);
+          s.model = Model::load(confined_path(base_dir, base_dir, name, policy, ""), policy);
         } catch (const Error& e) {
-          m->fail(std::string("cannot load model ") + e.what());
+          m->fail(std::string("cannot load model: ") + e.what());
         }
       }
     } else {
@@ -309,13 +305,19 @@ ChainFile chain_file(const std::string& path, const std::string& name) {
 
 // A scenario JSON with its "extends" chain applied. `chain` lists the files from the one the
 // user named down to the one `j` came from (its last entry), whose folder is `dir`.
-json apply_extends(json j, const std::string& dir, std::vector<ChainFile>& chain) {
+json apply_extends(json j, const std::string& dir, std::vector<ChainFile>& chain, const std::string& root,
+                   const InputPolicy& policy) {
   if (!j.is_object() || !j.contains("extends")) return j;
   const std::string here = chain.back().name;
   auto fail = [&](const std::string& reason) { throw Error(here + ": extends: " + reason); };
   if (!j["extends"].is_string()) fail("must be a string: the file name of the base scenario, relative to this file's folder");
   const std::string rel = j["extends"].get<std::string>();
-  const std::string path = resolve(dir, rel);
+  std::string path;
+  try {
+    path = confined_path(root, dir, rel, policy, "");
+  } catch (const Error& e) {
+    fail(e.what());
+  }
   const ChainFile base_file = chain_file(path, fs::path(path).lexically_normal().string());
   for (const auto& f : chain)
     if (f.key == base_file.key) {
@@ -327,14 +329,14 @@ json apply_extends(json j, const std::string& dir, std::vector<ChainFile>& chain
     fail("more than " + std::to_string(kMaxExtendsChain) + " files extend one another; the chain starts at " + chain.front().name);
   std::string text;
   try {
-    text = read_text_file(path);
+    text = read_input_file(path, policy);
   } catch (const Error& e) {
     fail("cannot read '" + rel + "' (" + e.what() + ")");
   }
   json base = parse_json_text(text, base_file.name);
   if (!base.is_object()) fail("'" + rel + "' must hold a JSON object (a scenario)");
   chain.push_back(base_file);
-  base = apply_extends(std::move(base), dir_of(path), chain);
+  base = apply_extends(std::move(base), dir_of(path), chain, root, policy);
   // A relative model path is relative to the file that names it: seen from this file, a model
   // named by the base lies in the base's folder.
   const std::string base_folder = fs::path(rel).parent_path().string();
@@ -355,39 +357,39 @@ struct MergedScenario {
   std::string bases;
 };
 
-MergedScenario merge_chain(json j, const std::string& dir, std::vector<ChainFile> chain) {
-  MergedScenario m{apply_extends(std::move(j), dir, chain), ""};
+MergedScenario merge_chain(json j, const std::string& dir, std::vector<ChainFile> chain, const InputPolicy& policy) {
+  MergedScenario m{apply_extends(std::move(j), dir, chain, dir, policy), ""};
   for (size_t i = 1; i < chain.size(); ++i) m.bases += (i == 1 ? " (extends " : ", ") + chain[i].name;
   if (chain.size() > 1) m.bases += ")";
   return m;
 }
 
-MergedScenario merge_file(const std::string& path) {
-  return merge_chain(load_json_file(path), dir_of(path), {chain_file(path, path)});
+MergedScenario merge_file(const std::string& path, const InputPolicy& policy) {
+  return merge_chain(load_json_file(path, policy), dir_of(path), {chain_file(path, path)}, policy);
 }
 
 }  // namespace
 
-ScenarioDef ScenarioDef::parse_text(const std::string& text, const std::string& base_dir) {
-  MergedScenario m = merge_chain(parse_json_text(text, "<scenario>"), base_dir, {{"<scenario>", ""}});
+ScenarioDef ScenarioDef::parse_text(const std::string& text, const std::string& base_dir, const InputPolicy& policy) {
+  MergedScenario m = merge_chain(parse_json_text(text, "<scenario>"), base_dir, {{"<scenario>", ""}}, policy);
   try {
-    return parse(m.j, "<scenario>", base_dir);
+    return parse(m.j, "<scenario>", base_dir, policy);
   } catch (const Error& e) {
     if (m.bases.empty()) throw;  // text that extends nothing: the JSON path says it all
     throw Error("<scenario>" + m.bases + ": " + e.what());
   }
 }
 
-ScenarioDef ScenarioDef::load(const std::string& path) {
-  MergedScenario m = merge_file(path);
+ScenarioDef ScenarioDef::load(const std::string& path, const InputPolicy& policy) {
+  MergedScenario m = merge_file(path, policy);
   try {
-    return parse(m.j, path, dir_of(path));
+    return parse(m.j, path, dir_of(path), policy);
   } catch (const Error& e) {
     throw Error(path + m.bases + ": " + e.what());
   }
 }
 
-json ScenarioDef::load_json(const std::string& path) { return merge_file(path).j; }
+json ScenarioDef::load_json(const std::string& path, const InputPolicy& policy) { return merge_file(path, policy).j; }
 
 int ScenarioDef::steps_per_frame() const { return static_cast<int>(std::lround(1.0 / (output_rate * dt))); }
 

@@ -66,11 +66,14 @@ struct ScenarioDef {
 
   // parse() takes one JSON document as it is; parse_text() and load() first apply its
   // "extends" chain (a base file, relative to base_dir or to the file's folder).
-  static ScenarioDef parse(const json& j, const std::string& source, const std::string& base_dir);
-  static ScenarioDef parse_text(const std::string& text, const std::string& base_dir = ".");
-  static ScenarioDef load(const std::string& path);
+  // Files it names ("model", "extends") resolve from base_dir (load: the file's folder) and must
+  // stay inside it unless the policy allows outside paths; every file read obeys its size limit.
+  static ScenarioDef parse(const json& j, const std::string& source, const std::string& base_dir,
+                           const InputPolicy& policy = {});
+  static ScenarioDef parse_text(const std::string& text, const std::string& base_dir = ".", const InputPolicy& policy = {});
+  static ScenarioDef load(const std::string& path, const InputPolicy& policy = {});
   // The scenario JSON of a file with its "extends" chain applied: what load() validates.
-  static json load_json(const std::string& path);
+  static json load_json(const std::string& path, const InputPolicy& policy = {});
   int steps_per_frame() const;
   // The scenario's own model, or the built-in default when it names none.
   Model model_or_default() const { return model ? *model : Model::default_model(); }
