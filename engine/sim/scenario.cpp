@@ -90,6 +90,7 @@ ScenarioDef ScenarioDef::parse(const json& j, const std::string& source, const s
   int version = r.integer("version", 1, 1000, std::nullopt);
   if (version != 1) r.fail_at("version", "unsupported scenario version " + std::to_string(version) + " (this engine reads 1)");
   ScenarioDef s;
+  s.document = j;
   s.source = source;
   s.base_dir = base_dir;
   s.name = r.string("name", "scenario");

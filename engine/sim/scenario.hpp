@@ -63,6 +63,7 @@ struct ScenarioDef {
   std::vector<Term> terms;  // "forces": the venue's force terms (sim/terms.hpp)
   std::vector<MeasurementArea> areas;
   OutputsDef outputs;
+  json document;  // the JSON parse() read (its "extends" chain applied): what a snapshot keeps
 
   // parse() takes one JSON document as it is; parse_text() and load() first apply its
   // "extends" chain (a base file, relative to base_dir or to the file's folder).

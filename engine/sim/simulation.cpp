@@ -25,6 +25,11 @@ static void check_time_step(const ScenarioDef& s, const Model& m, double dt) {
                 " m/s) must be <= cell_size / 4");
 }
 
+void Simulation::set_duration(double seconds) {
+  if (!(seconds > 0 && seconds <= 1e9)) throw Error("duration must be in (0, 1e9] s, got " + format_number(seconds));
+  scenario_.duration = seconds;
+}
+
 void Simulation::set_time_step(double dt) {
   check_time_step(scenario_, model_, dt);
   time_at_dt_change_ = time();
@@ -160,6 +165,7 @@ int Simulation::behaviour_for_target(const std::string& target) {
         if (behaviours_[b].kind == Behaviour::Kind::Goal && behaviours_[b].nav == static_cast<int>(i))
           return static_cast<int>(b);
   behaviours_.push_back(goal_behaviour(target));
+  added_targets_.push_back(target);
   return static_cast<int>(behaviours_.size() - 1);
 }
 
@@ -363,6 +369,7 @@ double Simulation::neighbour_reach() const {
 }
 
 void Simulation::init_neighbours(double reach) {
+  neighbour_reach_ = reach;
   // The social force keeps a step's neighbour lists through its substeps: pairs may close by
   // up to 2 max_speed dt meanwhile, so the lists reach that much further.
   if (!model_.is_continuum()) reach += 2 * model_.params.max_speed * scenario_.dt;

@@ -36,6 +36,8 @@ class Rng {
   explicit Rng(uint64_t seed) : state_(seed) {}
   uint64_t next();
   double uniform();  // [0, 1)
+  uint64_t state() const { return state_; }
+  void set_state(uint64_t s) { state_ = s; }
  private:
   uint64_t state_;
 };
@@ -95,11 +97,14 @@ class Simulation {
   StepInputs step_inputs() const { return StepInputs{model_, scenario_.geo, navs_, behaviours_, scenario_.terms, scenario_.dt, time()}; }
   const NeighbourGrid& neighbour_grid() const { return neighbours_; }
   int behaviour_for_target(const std::string& target);  // goal behaviour to an exit/goal id
+  // Changes the simulated time at which finished() holds (the scenario's time.duration), s > 0.
+  void set_duration(double seconds);
   // A person's free speed for group g: the group's, or drawn from its truncated normal
   // distribution with the simulation's random stream (no draw when it has none).
   double draw_speed(const GroupDef& g);
 
  private:
+  friend struct SnapshotCodec;  // engine/sim/snapshot.cpp: save and restore every member below
   void build_behaviours();
   Behaviour goal_behaviour(const std::string& target);
   void resolve(Behaviour& b);
@@ -124,6 +129,7 @@ class Simulation {
   std::vector<std::string> nav_targets_;
   std::vector<Behaviour> behaviours_;
   std::vector<int> group_behaviour_;
+  std::vector<std::string> added_targets_;  // behaviour_for_target's new behaviours, in order
   std::vector<ExitEvent> exit_events_;
   std::vector<double> source_accum_;
   std::vector<long> source_spawned_;
@@ -137,6 +143,7 @@ class Simulation {
   // reference volumes each add recomputes, so that all of them see the whole batch.
   size_t batch_start_ = 0;
   double max_radius_ = 0, max_comfort_ = 0, max_v0_ = 0;  // over agents added so far (for the cell lists)
+  double neighbour_reach_ = 0;      // the reach the cell lists were last sized for (init_neighbours)
   std::vector<int> exit_of_;        // scratch of retire_at_exits
   std::vector<size_t> first_bad_;   // scratch of check_finite
   bool profiling_ = false;

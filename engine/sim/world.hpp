@@ -52,6 +52,7 @@ class World {
   uint64_t state_hash() const;
 
  private:
+  friend struct SnapshotCodec;  // engine/sim/snapshot.cpp
   std::vector<long> slot_;  // id -> index, -1 once removed
   EntityId next_id_ = 1;
 };
