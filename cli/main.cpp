@@ -13,6 +13,7 @@
 #include "engine/predict/predict.hpp"
 #include "engine/io/render.hpp"
 #include "engine/learn/train.hpp"
+#include "engine/sim/snapshot.hpp"
 
 using namespace crowdmpm;
 
@@ -23,8 +24,10 @@ const char* kUsage =
     "\n"
     "commands:\n"
     "  simulate SCENARIO --out DIR [--model MODEL] [--threads N] [--duration S] [--quiet]\n"
-    "                      run a scenario and write trajectories, fields, pictures, a video\n"
-    "                      and metrics.json to DIR\n"
+    "           [--save-snapshot FILE [--snapshot-at S]]\n"
+    "  simulate --resume SNAPSHOT --out DIR [--threads N] [--duration S]\n"
+    "                      run a scenario (or continue a saved world) and write trajectories,\n"
+    "                      fields, pictures, a video and metrics.json to DIR\n"
     "  validate SCENARIO [--model MODEL]\n"
     "                      check a scenario (and model) and print what it contains\n"
     "  predict --scenario S --trajectories T [--model M]... [--observe S] [--horizon S]\n"
@@ -48,6 +51,7 @@ const char* kUsage =
 
 const char* kSimulateHelp =
     "usage: crowdmpm simulate SCENARIO --out DIR [options]\n"
+    "       crowdmpm simulate --resume SNAPSHOT --out DIR [options]\n"
     "\n"
     "Runs SCENARIO (a crowdmpm-scenario JSON file) and writes into DIR:\n"
     "  trajectories.txt   PeTrack text: id frame x y z (metres), '# framerate:' header\n"
@@ -61,8 +65,15 @@ const char* kSimulateHelp =
     "  --out DIR          output folder (created if missing); required\n"
     "  --model MODEL      crowdmpm-model JSON to use instead of the scenario's model\n"
     "  --threads N        worker threads (results are identical for any N); default 1\n"
-    "  --duration S       override time.duration (seconds)\n"
-    "  --quiet            no progress bar\n";
+    "  --duration S       override time.duration (seconds; with --resume, the simulated time\n"
+    "                     at which the continued run ends)\n"
+    "  --quiet            no progress bar\n"
+    "  --save-snapshot FILE\n"
+    "                     save the running world to FILE (docs/snapshot-format.md): at the\n"
+    "                     first step reaching --snapshot-at S seconds, else at the end\n"
+    "  --resume SNAPSHOT  continue a saved world (its scenario and model are in the file)\n"
+    "                     to its duration; it continues exactly as the uninterrupted run,\n"
+    "                     and DIR's outputs cover the time from the snapshot on\n";
 
 const char* kPredictHelp =
     "usage: crowdmpm predict --scenario S --trajectories T [options]\n"
@@ -167,6 +178,8 @@ struct Args {
   json train = json::object();  // train: the "options" of a training request (parse_train_job)
   bool stride_given = false;
   InputPolicy input;  // --max-input-mb, --allow-outside-paths
+  std::string save_snapshot, resume;
+  double snapshot_at = -1;
 };
 
 [[noreturn]] void usage_error(const std::string& msg);
@@ -251,6 +264,9 @@ Args parse_args(int argc, char** argv, int first) {
       if (v.empty() || *end || !std::isfinite(d)) usage_error(s + " must be a number, got '" + v + "'");
       a.train[key] = d;
     }
+    else if (s == "--save-snapshot") a.save_snapshot = value("--save-snapshot");
+    else if (s == "--resume") a.resume = value("--resume");
+    else if (s == "--snapshot-at") a.snapshot_at = parse_double(s, value("--snapshot-at"), 0, 1e9, "a time in seconds >= 0");
     else if (s == "--max-input-mb") {
       a.input.max_bytes = static_cast<uint64_t>(
           parse_double(s, value("--max-input-mb"), 1e-3, 1e9, "a size in MiB in [0.001, 1e9]") * 1024 * 1024);
@@ -296,17 +312,29 @@ void progress_bar(double t, double duration, size_t agents) {
 
 int cmd_simulate(const Args& a) {
   if (a.help) { std::fputs(kSimulateHelp, stdout); return 0; }
-  if (a.positional.size() != 1) usage_error("simulate needs exactly one SCENARIO file");
   if (a.out.empty()) usage_error("simulate needs --out DIR");
-  ScenarioDef s = ScenarioDef::load(a.positional[0], a.input);
-  if (a.duration > 0) s.duration = a.duration;
-  Model m = !a.model.empty() ? Model::load(a.model, a.input) : s.model_or_default();
+  if (a.snapshot_at >= 0 && a.save_snapshot.empty()) usage_error("--snapshot-at needs --save-snapshot FILE");
   RunOptions opt;
   opt.out_dir = a.out;
   opt.threads = a.threads;
+  opt.snapshot_path = a.save_snapshot;
+  opt.snapshot_at = a.snapshot_at;
   bool tty = isatty(fileno(stderr)) && !a.quiet;
   if (tty) opt.progress = progress_bar;
-  RunSummary r = run_scenario(s, m, opt);
+  std::unique_ptr<Simulation> sim;
+  if (!a.resume.empty()) {
+    if (!a.positional.empty()) usage_error("simulate --resume takes no SCENARIO (the snapshot holds it)");
+    if (!a.model.empty()) usage_error("simulate --resume takes no --model (the snapshot holds it)");
+    sim = load_snapshot_file(a.resume, a.threads, a.input);
+  } else {
+    if (a.positional.size() != 1) usage_error("simulate needs exactly one SCENARIO file (or --resume SNAPSHOT)");
+    ScenarioDef sd = ScenarioDef::load(a.positional[0], a.input);
+    Model m = !a.model.empty() ? Model::load(a.model, a.input) : sd.model_or_default();
+    sim = std::make_unique<Simulation>(sd, m, a.threads);
+  }
+  if (a.duration > 0) sim->set_duration(a.duration);
+  const ScenarioDef& s = sim->scenario();
+  RunSummary r = run_simulation(*sim, opt);
   if (tty) std::fputc('\n', stderr);
   char evac[64] = "not complete";
   if (r.evacuation_time) std::snprintf(evac, sizeof evac, "%.1f s", *r.evacuation_time);

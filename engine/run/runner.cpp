@@ -8,6 +8,7 @@
 #include <memory>
 
 #include "engine/io/render.hpp"
+#include "engine/sim/snapshot.hpp"
 
 namespace crowdmpm {
 
@@ -59,6 +60,16 @@ void NpyWriter::close() {
 RunSummary run_scenario(const ScenarioDef& s, const Model& model, const RunOptions& opt) {
   auto t0 = std::chrono::steady_clock::now();
   Simulation sim(s, model, opt.threads);
+  const double setup = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  RunSummary r = run_simulation(sim, opt);
+  r.wall_seconds += setup;
+  return r;
+}
+
+RunSummary run_simulation(Simulation& sim, const RunOptions& opt) {
+  auto t0 = std::chrono::steady_clock::now();
+  const ScenarioDef& s = sim.scenario();
+  const Model& model = sim.model();
   MetricsRecorder metrics(s);
   RunSummary out;
   const bool files = !opt.out_dir.empty();
@@ -117,12 +128,22 @@ RunSummary run_scenario(const ScenarioDef& s, const Model& model, const RunOptio
     if (video) video->add_frame(sim.world(), sim.time());
     if (opt.progress) opt.progress(sim.time(), s.duration, sim.world().size());
   };
+  bool snapshot_due = !opt.snapshot_path.empty();
+  auto save_snapshot_now = [&]() {
+    save_snapshot_file(sim, opt.snapshot_path);
+    out.files.push_back(opt.snapshot_path);
+    snapshot_due = false;
+  };
   emit();
   const int spf = s.steps_per_frame();
   while (!sim.finished()) {
-    for (int k = 0; k < spf && !sim.finished(); ++k) sim.step();
+    for (int k = 0; k < spf && !sim.finished(); ++k) {
+      sim.step();
+      if (snapshot_due && opt.snapshot_at >= 0 && sim.time() >= opt.snapshot_at - 1e-9) save_snapshot_now();
+    }
     emit();
   }
+  if (snapshot_due) save_snapshot_now();
   out.metrics = metrics.to_json(sim);
   if (files) {
     if (traj) traj->close();

@@ -34,6 +34,10 @@ struct RunOptions {
   int threads = 1;
   // Called after every output frame with (time, duration, agents).
   std::function<void(double, double, size_t)> progress;
+  // Save a snapshot of the world (engine/sim/snapshot.hpp) to this file: at the first step that
+  // reaches snapshot_at seconds, or at the end of the run if snapshot_at < 0 or is never reached.
+  std::string snapshot_path;
+  double snapshot_at = -1;
 };
 
 struct RunSummary {
@@ -49,5 +53,8 @@ struct RunSummary {
 };
 
 RunSummary run_scenario(const ScenarioDef& scenario, const Model& model, const RunOptions& options);
+// The same for a world that exists (one restored from a snapshot continues its clock; its
+// outputs cover the time from where it stands to its duration).
+RunSummary run_simulation(Simulation& sim, const RunOptions& options);
 
 }  // namespace crowdmpm
