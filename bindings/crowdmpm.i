@@ -23,6 +23,7 @@
 %template(LongVector) std::vector<long long>;
 
 %newobject crowdmpm_binding::World::null_world;
+%newobject crowdmpm_binding::World::from_snapshot;
 
 #ifdef SWIGJAVA
 %pragma(java) jniclasscode=%{
@@ -36,7 +37,7 @@
 %feature("autodoc", "2");
 %feature("kwargs");
 %feature("compactdefaultargs");
-%feature("docstring") crowdmpm_binding::World "A simulated crowd: World(scenario, model='', threads=1). scenario is a file path or JSON text; model likewise ('' for the scenario's own or the default). Errors raise RuntimeError with the library's message.";
+%feature("docstring") crowdmpm_binding::World "A simulated crowd: World(scenario, model='', threads=1, allow_outside_paths=False, max_input_bytes=0). scenario is a file path or JSON text; model likewise ('' for the scenario's own or the default). Errors raise RuntimeError with the library's message.";
 %feature("docstring") crowdmpm_binding::World::step "step(steps=1): advance by steps steps of the scenario's dt.";
 %feature("docstring") crowdmpm_binding::World::time "time() -> float: simulated time, s.";
 %feature("docstring") crowdmpm_binding::World::time_step "time_step() -> float: dt, s.";
@@ -61,6 +62,8 @@
 %feature("docstring") crowdmpm_binding::World::load_traction "load_traction(json): replace the traction network ({'layers': [...]} or {'constant': K}).";
 %feature("docstring") crowdmpm_binding::World::destroy "destroy(): free the world now; later calls raise.";
 %feature("docstring") crowdmpm_binding::World::is_valid "is_valid() -> bool: whether the world still exists.";
+%feature("docstring") crowdmpm_binding::World::from_snapshot "from_snapshot(path, threads=1) -> World: a world restored from a snapshot file; it continues exactly as the saved world would have.";
+%feature("docstring") crowdmpm_binding::World::save_snapshot "save_snapshot(path): save the world to a snapshot file (versioned, checksummed).";
 %feature("docstring") crowdmpm_binding::World::null_world "null_world() -> World: a world with a null id (every call raises); for testing error handling.";
 %feature("docstring") crowdmpm_binding::version "version() -> str: library version.";
 %feature("docstring") crowdmpm_binding::abi_version "abi_version() -> int: C ABI version.";

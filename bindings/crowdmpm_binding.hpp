@@ -35,8 +35,13 @@ class World {
  public:
   // scenario: a file path, or JSON text if it starts with '{'. model: "" (the scenario's or the
   // default model), a path, or JSON text. threads: 1..256, results do not depend on it.
-  World(const std::string& scenario, const std::string& model = "", int threads = 1) {
+  // allow_outside_paths: let the scenario name files outside its folder; max_input_bytes: the
+  // largest file read (0: 256 MiB).
+  World(const std::string& scenario, const std::string& model = "", int threads = 1, bool allow_outside_paths = false,
+        long long max_input_bytes = 0) {
     cmpm_WorldDef def = cmpm_DefaultWorldDef();
+    def.allow_outside_paths = allow_outside_paths ? 1 : 0;
+    def.max_input_bytes = max_input_bytes;
     bool scenario_text = is_json(scenario), model_text = is_json(model);
     def.scenario_json = scenario_text ? scenario.c_str() : nullptr;
     def.scenario_path = scenario_text ? nullptr : scenario.c_str();
@@ -55,6 +60,23 @@ class World {
 
   // A world whose id is null: every call on it raises (for tests of error handling).
   static World* null_world() { return new World(); }
+
+  // A world restored from a snapshot file written by save_snapshot: it continues exactly as the
+  // saved world would have.
+  static World* from_snapshot(const std::string& path, int threads = 1) {
+    cmpm_WorldDef def = cmpm_DefaultWorldDef();
+    def.snapshot_path = path.c_str();
+    def.threads = threads;
+    World* w = new World();
+    cmpm_Status s = cmpm_CreateWorld(&def, &w->id_);
+    if (s != CMPM_OK) {
+      delete w;
+      check(s);
+    }
+    return w;
+  }
+  // Saves the world to a snapshot file (versioned, checksummed).
+  void save_snapshot(const std::string& path) { check(cmpm_World_SaveSnapshot(id_, path.c_str())); }
 
   // Destroys the world now; later calls raise "... was destroyed".
   void destroy() {
@@ -80,19 +102,11 @@ class World {
   // Bulk reads: x0, y0, x1, y1, ... (m); vx0, vy0, ... (m/s); pressures; ids. Same agent order.
   std::vector<double> positions() const { return read2(&cmpm_World_GetPositions); }
   std::vector<double> velocities() const { return read2(&cmpm_World_GetVelocities); }
-  std::vector<double> pressures() const {
-    std::vector<double> out(static_cast<size_t>(agent_count()));
-    int32_t n;
-    check(cmpm_World_GetPressures(id_, out.data(), static_cast<int32_t>(out.size()), &n));
-    out.resize(static_cast<size_t>(n));
-    return out;
-  }
+  std::vector<double> pressures() const { return read_all<double>(&cmpm_World_GetPressures, 1); }
   std::vector<long long> agent_ids() const {
-    std::vector<cmpm_AgentId> ids(static_cast<size_t>(agent_count()));
-    int32_t n;
-    check(cmpm_World_GetAgentIds(id_, ids.data(), static_cast<int32_t>(ids.size()), &n));
+    const std::vector<cmpm_AgentId> ids = read_all<cmpm_AgentId>(&cmpm_World_GetAgentIds, 1);
     std::vector<long long> out;
-    for (int32_t i = 0; i < n; ++i) out.push_back(static_cast<long long>(ids[static_cast<size_t>(i)].value));
+    for (const cmpm_AgentId& a : ids) out.push_back(static_cast<long long>(a.value));
     return out;
   }
 
@@ -145,11 +159,22 @@ class World {
     return false;
   }
   std::vector<double> read2(cmpm_Status (*fn)(cmpm_WorldId, double*, int32_t, int32_t*)) const {
-    std::vector<double> out(2 * static_cast<size_t>(agent_count()));
-    int32_t n;
-    check(fn(id_, out.data(), static_cast<int32_t>(out.size() / 2), &n));
-    out.resize(2 * static_cast<size_t>(n));
-    return out;
+    return read_all<double>(fn, 2);
+  }
+  // A bulk read sized from the agent count. Another thread may step the world between the count
+  // and the read (the C ABI serialises calls, not pairs of calls): on "buffer too small" it
+  // counts again and retries.
+  template <class T>
+  std::vector<T> read_all(cmpm_Status (*fn)(cmpm_WorldId, T*, int32_t, int32_t*), size_t per_agent) const {
+    for (int attempt = 0;; ++attempt) {
+      std::vector<T> out(per_agent * static_cast<size_t>(agent_count()) + (attempt > 0 ? 64 : 0));
+      int32_t n = 0;
+      cmpm_Status s = fn(id_, out.data(), static_cast<int32_t>(out.size()), &n);
+      if (s == CMPM_ERROR_BUFFER_TOO_SMALL && attempt < 8) continue;
+      check(s);
+      out.resize(static_cast<size_t>(n));
+      return out;
+    }
   }
   cmpm_WorldId id_;
 };

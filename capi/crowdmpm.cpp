@@ -2,6 +2,7 @@
 // every entry point that turns any C++ exception into a status and a thread-local message.
 #include "crowdmpm/crowdmpm.h"
 
+#include <climits>
 #include <cmath>
 #include <cstring>
 #include <memory>
@@ -14,6 +15,7 @@
 #include "engine/sim/simulation.hpp"
 #include "engine/predict/predict.hpp"
 #include "engine/learn/train.hpp"
+#include "engine/sim/snapshot.hpp"
 
 using namespace crowdmpm;
 
@@ -28,12 +30,20 @@ struct ApiError {
   std::string message;
 };
 
+// A world and the lock every call on it holds for its whole duration: calls on one world are
+// serialised, calls on different worlds run concurrently, and destroying waits for the call in
+// progress (the header's thread contract).
+struct Box {
+  std::mutex call;
+  std::unique_ptr<Simulation> sim;  // null once destroyed
+};
+
 struct Slot {
-  std::unique_ptr<Simulation> sim;
+  std::shared_ptr<Box> box;  // null: free slot
   uint32_t generation = 1;
 };
 
-std::mutex g_registry_mutex;
+std::mutex g_registry_mutex;  // guards g_slots (never held while waiting for a world)
 std::vector<Slot> g_slots;
 
 [[noreturn]] void fail(cmpm_Status s, const std::string& msg) { throw ApiError{s, msg}; }
@@ -66,12 +76,37 @@ std::string describe(cmpm_WorldId w) {
   return "world {index1 " + std::to_string(w.index1) + ", generation " + std::to_string(w.generation) + "}";
 }
 
-Simulation& lookup(cmpm_WorldId w) {
-  if (w.index1 == 0) fail(CMPM_ERROR_NULL_HANDLE, "null world id (zeroed cmpm_WorldId)");
-  std::lock_guard<std::mutex> lock(g_registry_mutex);
-  if (w.index1 > g_slots.size() || !g_slots[w.index1 - 1].sim || g_slots[w.index1 - 1].generation != w.generation)
+// The live slot of a handle; the registry mutex must be held.
+Slot& live_slot(cmpm_WorldId w) {
+  if (w.index1 > g_slots.size() || !g_slots[w.index1 - 1].box || g_slots[w.index1 - 1].generation != w.generation)
     fail(CMPM_ERROR_STALE_HANDLE, describe(w) + " does not exist or was destroyed");
-  return *g_slots[w.index1 - 1].sim;
+  return g_slots[w.index1 - 1];
+}
+
+// A world held for one call: it keeps the world's memory alive and its call lock taken until
+// the call returns. Deliberately not convertible to Simulation&, so that no call site can let
+// the lock go while still using the world.
+class Held {
+ public:
+  Held(std::shared_ptr<Box> box, std::unique_lock<std::mutex> lock) : box_(std::move(box)), lock_(std::move(lock)) {}
+  Simulation& sim() { return *box_->sim; }
+
+ private:
+  std::shared_ptr<Box> box_;
+  std::unique_lock<std::mutex> lock_;
+};
+
+Held lookup(cmpm_WorldId w) {
+  if (w.index1 == 0) fail(CMPM_ERROR_NULL_HANDLE, "null world id (zeroed cmpm_WorldId)");
+  std::shared_ptr<Box> box;
+  {
+    std::lock_guard<std::mutex> registry(g_registry_mutex);
+    box = live_slot(w).box;
+  }
+  std::unique_lock<std::mutex> lock(box->call);
+  // Destroyed while this call waited for another call on the same world to finish.
+  if (!box->sim) fail(CMPM_ERROR_STALE_HANDLE, describe(w) + " was destroyed");
+  return Held(std::move(box), std::move(lock));
 }
 
 template <class T>
@@ -83,6 +118,8 @@ void check_capacity(int32_t capacity, size_t needed, int32_t* out_written, const
   require(out_written, "out_written");
   *out_written = 0;
   if (capacity < 0) fail(CMPM_ERROR_INVALID_ARGUMENT, std::string("capacity must be >= 0, got ") + std::to_string(capacity));
+  if (needed > static_cast<size_t>(INT32_MAX))
+    fail(CMPM_ERROR_INTERNAL, std::string(what) + ": " + std::to_string(needed) + " values are more than an int32_t count can report");
   if (static_cast<size_t>(capacity) < needed)
     fail(CMPM_ERROR_BUFFER_TOO_SMALL, std::string(what) + ": buffer holds " + std::to_string(capacity) + " but " +
                                           std::to_string(needed) + " are needed");
@@ -156,47 +193,83 @@ cmpm_Status cmpm_CreateWorld(const cmpm_WorldDef* def, cmpm_WorldId* out_world) 
     *out_world = cmpm_WorldId{0, 0};
     if (def->internal_cookie != kCookie)
       fail(CMPM_ERROR_UNINITIALIZED_DEF, "the cmpm_WorldDef was not made by cmpm_DefaultWorldDef()");
-    if ((def->scenario_json != nullptr) == (def->scenario_path != nullptr))
-      fail(CMPM_ERROR_INVALID_ARGUMENT, "give exactly one of scenario_json or scenario_path");
+    const int sources = (def->scenario_json != nullptr) + (def->scenario_path != nullptr) + (def->snapshot_path != nullptr);
+    if (sources != 1) fail(CMPM_ERROR_INVALID_ARGUMENT, "give exactly one of scenario_json, scenario_path or snapshot_path");
     if (def->model_json && def->model_path) fail(CMPM_ERROR_INVALID_ARGUMENT, "give at most one of model_json or model_path");
+    if (def->snapshot_path && (def->model_json || def->model_path))
+      fail(CMPM_ERROR_INVALID_ARGUMENT, "a snapshot holds its model: give no model_json or model_path with snapshot_path");
     if (def->threads < 1 || def->threads > 256)
       fail(CMPM_ERROR_INVALID_ARGUMENT, "threads must be in [1, 256], got " + std::to_string(def->threads));
-    ScenarioDef s = def->scenario_path ? ScenarioDef::load(def->scenario_path) : ScenarioDef::parse_text(def->scenario_json);
-    Model m = def->model_path ? Model::load(def->model_path)
-              : def->model_json ? Model::parse(JsonReader(parse_json_text(def->model_json, "<model>"), ""), "<model>")
-              : s.model_or_default();
-    auto sim = std::make_unique<Simulation>(s, m, def->threads);
+    if (def->max_input_bytes < 0)
+      fail(CMPM_ERROR_INVALID_ARGUMENT, "max_input_bytes must be >= 0 (0: the default), got " + std::to_string(def->max_input_bytes));
+    if (def->allow_outside_paths != 0 && def->allow_outside_paths != 1)
+      fail(CMPM_ERROR_INVALID_ARGUMENT, "allow_outside_paths must be 0 or 1, got " + std::to_string(def->allow_outside_paths));
+    InputPolicy policy;
+    if (def->max_input_bytes > 0) policy.max_bytes = static_cast<uint64_t>(def->max_input_bytes);
+    policy.allow_outside_paths = def->allow_outside_paths == 1;
+    std::unique_ptr<Simulation> sim;
+    if (def->snapshot_path) {
+      sim = load_snapshot_file(def->snapshot_path, def->threads, policy);
+    } else {
+      ScenarioDef s = def->scenario_path ? ScenarioDef::load(def->scenario_path, policy)
+                                         : ScenarioDef::parse_text(def->scenario_json, ".", policy);
+      Model m = def->model_path ? Model::load(def->model_path, policy)
+                : def->model_json ? Model::parse(JsonReader(parse_json_text(def->model_json, "<model>"), ""), "<model>")
+                : s.model_or_default();
+      sim = std::make_unique<Simulation>(s, m, def->threads);
+    }
+    auto box = std::make_shared<Box>();
+    box->sim = std::move(sim);
     std::lock_guard<std::mutex> lock(g_registry_mutex);
     size_t i = 0;
-    while (i < g_slots.size() && g_slots[i].sim) ++i;
-    if (i == g_slots.size()) g_slots.emplace_back();
-    g_slots[i].sim = std::move(sim);
+    while (i < g_slots.size() && g_slots[i].box) ++i;
+    if (i == g_slots.size()) {
+      if (g_slots.size() >= 0xffffffffu) fail(CMPM_ERROR_INTERNAL, "too many worlds");
+      g_slots.emplace_back();
+    }
+    g_slots[i].box = std::move(box);
     *out_world = cmpm_WorldId{static_cast<uint32_t>(i + 1), g_slots[i].generation};
   });
 }
 
 cmpm_Status cmpm_DestroyWorld(cmpm_WorldId world) {
   return guard("cmpm_DestroyWorld", CMPM_ERROR_INVALID_ARGUMENT, [&] {
-    lookup(world);
-    std::unique_ptr<Simulation> doomed;
+    if (world.index1 == 0) fail(CMPM_ERROR_NULL_HANDLE, "null world id (zeroed cmpm_WorldId)");
+    std::shared_ptr<Box> box;
     {
-      std::lock_guard<std::mutex> lock(g_registry_mutex);
-      Slot& s = g_slots[world.index1 - 1];
-      doomed = std::move(s.sim);
-      ++s.generation;
+      // Checking the handle and invalidating it are one step: of two threads destroying the
+      // same world, exactly one succeeds.
+      std::lock_guard<std::mutex> registry(g_registry_mutex);
+      Slot& slot = live_slot(world);
+      box = std::move(slot.box);
+      ++slot.generation;
     }
+    // Wait for a call in progress on the world (it holds the call lock), then free it; calls
+    // that were waiting find it destroyed.
+    std::lock_guard<std::mutex> call(box->call);
+    box->sim.reset();
   });
 }
 
 int32_t cmpm_World_IsValid(cmpm_WorldId world) {
   if (world.index1 == 0) return 0;
   std::lock_guard<std::mutex> lock(g_registry_mutex);
-  return world.index1 <= g_slots.size() && g_slots[world.index1 - 1].sim && g_slots[world.index1 - 1].generation == world.generation;
+  return world.index1 <= g_slots.size() && g_slots[world.index1 - 1].box && g_slots[world.index1 - 1].generation == world.generation;
+}
+
+cmpm_Status cmpm_World_SaveSnapshot(cmpm_WorldId world, const char* path) {
+  return guard("cmpm_World_SaveSnapshot", CMPM_ERROR_INVALID_ARGUMENT, [&] {
+    Held held = lookup(world);
+    require(path, "path");
+    if (!*path) fail(CMPM_ERROR_INVALID_ARGUMENT, "path is empty");
+    save_snapshot_file(held.sim(), path);
+  });
 }
 
 cmpm_Status cmpm_World_Step(cmpm_WorldId world, int32_t steps) {
   return guard("cmpm_World_Step", CMPM_ERROR_SIMULATION, [&] {
-    Simulation& sim = lookup(world);
+    Held held = lookup(world);
+    Simulation& sim = held.sim();
     if (steps < 0 || steps > 10000000)
       fail(CMPM_ERROR_INVALID_ARGUMENT, "steps must be in [0, 10000000], got " + std::to_string(steps));
     sim.run_steps(steps);
@@ -204,47 +277,48 @@ cmpm_Status cmpm_World_Step(cmpm_WorldId world, int32_t steps) {
 }
 
 cmpm_Status cmpm_World_SetTimeStep(cmpm_WorldId world, double dt) {
-  return guard("cmpm_World_SetTimeStep", CMPM_ERROR_INVALID_ARGUMENT, [&] { lookup(world).set_time_step(dt); });
+  return guard("cmpm_World_SetTimeStep", CMPM_ERROR_INVALID_ARGUMENT, [&] { lookup(world).sim().set_time_step(dt); });
 }
 
 cmpm_Status cmpm_World_GetTimeStep(cmpm_WorldId world, double* out_dt) {
   return guard("cmpm_World_GetTimeStep", CMPM_ERROR_INVALID_ARGUMENT, [&] {
     require(out_dt, "out_dt");
-    *out_dt = lookup(world).scenario().dt;
+    *out_dt = lookup(world).sim().scenario().dt;
   });
 }
 
 cmpm_Status cmpm_World_GetTime(cmpm_WorldId world, double* out_seconds) {
   return guard("cmpm_World_GetTime", CMPM_ERROR_INVALID_ARGUMENT, [&] {
     require(out_seconds, "out_seconds");
-    *out_seconds = lookup(world).time();
+    *out_seconds = lookup(world).sim().time();
   });
 }
 
 cmpm_Status cmpm_World_GetStateHash(cmpm_WorldId world, uint64_t* out_hash) {
   return guard("cmpm_World_GetStateHash", CMPM_ERROR_INVALID_ARGUMENT, [&] {
     require(out_hash, "out_hash");
-    *out_hash = lookup(world).world().state_hash();
+    *out_hash = lookup(world).sim().world().state_hash();
   });
 }
 
 cmpm_Status cmpm_World_GetAgentCount(cmpm_WorldId world, int32_t* out_count) {
   return guard("cmpm_World_GetAgentCount", CMPM_ERROR_INVALID_ARGUMENT, [&] {
     require(out_count, "out_count");
-    *out_count = static_cast<int32_t>(lookup(world).world().size());
+    *out_count = static_cast<int32_t>(lookup(world).sim().world().size());
   });
 }
 
 cmpm_Status cmpm_World_GetExitedCount(cmpm_WorldId world, int32_t* out_count) {
   return guard("cmpm_World_GetExitedCount", CMPM_ERROR_INVALID_ARGUMENT, [&] {
     require(out_count, "out_count");
-    *out_count = static_cast<int32_t>(lookup(world).exit_events().size());
+    *out_count = static_cast<int32_t>(lookup(world).sim().exit_events().size());
   });
 }
 
 cmpm_Status cmpm_World_GetAgentIds(cmpm_WorldId world, cmpm_AgentId* out, int32_t capacity, int32_t* out_written) {
   return guard("cmpm_World_GetAgentIds", CMPM_ERROR_INVALID_ARGUMENT, [&] {
-    const World& w = lookup(world).world();
+    Held held = lookup(world);
+    const World& w = held.sim().world();
     check_capacity(capacity, w.size(), out_written, "agent ids");
     if (w.size()) require(out, "out");
     for (size_t p = 0; p < w.size(); ++p) out[p].value = w.id[p];
@@ -255,15 +329,16 @@ cmpm_Status cmpm_World_GetAgentIds(cmpm_WorldId world, cmpm_AgentId* out, int32_
 static cmpm_Status read_vec2(const char* fn, cmpm_WorldId world, double* out, int32_t capacity, int32_t* out_written,
                              bool velocity) {
   return guard(fn, CMPM_ERROR_INVALID_ARGUMENT, [&] {
-    const World& w = lookup(world).world();
-    check_capacity(capacity, w.size(), out_written, velocity ? "velocities" : "positions");
+    Held held = lookup(world);
+    const World& w = held.sim().world();
+    check_capacity(capacity, 2 * w.size(), out_written, velocity ? "velocities (doubles)" : "positions (doubles)");
     if (w.size()) require(out, "out");
     const std::vector<Vec2>& src = velocity ? w.v : w.x;
     for (size_t p = 0; p < w.size(); ++p) {
       out[2 * p] = src[p].x();
       out[2 * p + 1] = src[p].y();
     }
-    *out_written = static_cast<int32_t>(w.size());
+    *out_written = static_cast<int32_t>(2 * w.size());
   });
 }
 
@@ -277,7 +352,8 @@ cmpm_Status cmpm_World_GetVelocities(cmpm_WorldId world, double* out_vxy, int32_
 
 cmpm_Status cmpm_World_GetPressures(cmpm_WorldId world, double* out, int32_t capacity, int32_t* out_written) {
   return guard("cmpm_World_GetPressures", CMPM_ERROR_INVALID_ARGUMENT, [&] {
-    const World& w = lookup(world).world();
+    Held held = lookup(world);
+    const World& w = held.sim().world();
     check_capacity(capacity, w.size(), out_written, "pressures");
     if (w.size()) require(out, "out");
     for (size_t p = 0; p < w.size(); ++p) out[p] = w.pressure[p];
@@ -288,7 +364,8 @@ cmpm_Status cmpm_World_GetPressures(cmpm_WorldId world, double* out, int32_t cap
 cmpm_Status cmpm_World_GetFieldShape(cmpm_WorldId world, int32_t* out_nx, int32_t* out_ny, double* out_origin_x,
                                      double* out_origin_y, double* out_cell) {
   return guard("cmpm_World_GetFieldShape", CMPM_ERROR_INVALID_ARGUMENT, [&] {
-    const Grid& g = lookup(world).grid();
+    Held held = lookup(world);
+    const Grid& g = held.sim().grid();
     require(out_nx, "out_nx");
     require(out_ny, "out_ny");
     *out_nx = g.nx;
@@ -301,11 +378,12 @@ cmpm_Status cmpm_World_GetFieldShape(cmpm_WorldId world, int32_t* out_nx, int32_
 
 cmpm_Status cmpm_World_GetField(cmpm_WorldId world, int32_t field, double* out, int32_t capacity, int32_t* out_written) {
   return guard("cmpm_World_GetField", CMPM_ERROR_INVALID_ARGUMENT, [&] {
-    const Simulation& sim = lookup(world);
+    Held held = lookup(world);
+    const Simulation& sim = held.sim();
     if (field != CMPM_FIELD_DENSITY && field != CMPM_FIELD_PRESSURE && field != CMPM_FIELD_VELOCITY)
       fail(CMPM_ERROR_INVALID_ARGUMENT, "unknown field " + std::to_string(field) + " (0 density, 1 pressure, 2 velocity)");
     const size_t n = sim.grid().nodes() * (field == CMPM_FIELD_VELOCITY ? 2 : 1);
-    check_capacity(capacity, n, out_written, "field");
+    check_capacity(capacity, n, out_written, "field (doubles)");
     require(out, "out");
     FieldFrame f = compute_fields(sim.world(), sim.grid());
     for (size_t k = 0; k < sim.grid().nodes(); ++k) {
@@ -322,7 +400,8 @@ cmpm_Status cmpm_World_GetField(cmpm_WorldId world, int32_t field, double* out, 
 
 cmpm_Status cmpm_World_AddAgent(cmpm_WorldId world, const cmpm_AgentDef* def, cmpm_AgentId* out_agent) {
   return guard("cmpm_World_AddAgent", CMPM_ERROR_INVALID_ARGUMENT, [&] {
-    Simulation& sim = lookup(world);
+    Held held = lookup(world);
+    Simulation& sim = held.sim();
     require(def, "def");
     require(out_agent, "out_agent");
     out_agent->value = 0;
@@ -342,14 +421,16 @@ cmpm_Status cmpm_World_AddAgent(cmpm_WorldId world, const cmpm_AgentDef* def, cm
 
 cmpm_Status cmpm_World_RemoveAgent(cmpm_WorldId world, cmpm_AgentId agent) {
   return guard("cmpm_World_RemoveAgent", CMPM_ERROR_INVALID_ARGUMENT, [&] {
-    Simulation& sim = lookup(world);
+    Held held = lookup(world);
+    Simulation& sim = held.sim();
     sim.world().remove_at(static_cast<size_t>(agent_index(sim, agent)));
   });
 }
 
 cmpm_Status cmpm_World_SetAgentTarget(cmpm_WorldId world, cmpm_AgentId agent, const char* target) {
   return guard("cmpm_World_SetAgentTarget", CMPM_ERROR_INVALID_ARGUMENT, [&] {
-    Simulation& sim = lookup(world);
+    Held held = lookup(world);
+    Simulation& sim = held.sim();
     long i = agent_index(sim, agent);
     require(target, "target");
     sim.world().behaviour[static_cast<size_t>(i)] = sim.behaviour_for_target(target);
@@ -359,7 +440,8 @@ cmpm_Status cmpm_World_SetAgentTarget(cmpm_WorldId world, cmpm_AgentId agent, co
 cmpm_Status cmpm_World_GetAgentState(cmpm_WorldId world, cmpm_AgentId agent, double* out_x, double* out_y, double* out_vx,
                                      double* out_vy) {
   return guard("cmpm_World_GetAgentState", CMPM_ERROR_INVALID_ARGUMENT, [&] {
-    const Simulation& sim = lookup(world);
+    Held held = lookup(world);
+    const Simulation& sim = held.sim();
     size_t i = static_cast<size_t>(agent_index(sim, agent));
     if (out_x) *out_x = sim.world().x[i].x();
     if (out_y) *out_y = sim.world().x[i].y();
@@ -370,7 +452,8 @@ cmpm_Status cmpm_World_GetAgentState(cmpm_WorldId world, cmpm_AgentId agent, dou
 
 cmpm_Status cmpm_World_GetParameter(cmpm_WorldId world, const char* name, double* out_value) {
   return guard("cmpm_World_GetParameter", CMPM_ERROR_INVALID_ARGUMENT, [&] {
-    const Simulation& sim = lookup(world);
+    Held held = lookup(world);
+    const Simulation& sim = held.sim();
     require(name, "name");
     require(out_value, "out_value");
     *out_value = sim.model().get(name);
@@ -379,7 +462,8 @@ cmpm_Status cmpm_World_GetParameter(cmpm_WorldId world, const char* name, double
 
 cmpm_Status cmpm_World_SetParameter(cmpm_WorldId world, const char* name, double value) {
   return guard("cmpm_World_SetParameter", CMPM_ERROR_INVALID_ARGUMENT, [&] {
-    Simulation& sim = lookup(world);
+    Held held = lookup(world);
+    Simulation& sim = held.sim();
     require(name, "name");
     Model m = sim.model();
     m.set(name, value);
@@ -389,7 +473,8 @@ cmpm_Status cmpm_World_SetParameter(cmpm_WorldId world, const char* name, double
 
 cmpm_Status cmpm_World_LoadTraction(cmpm_WorldId world, const char* traction_json) {
   return guard("cmpm_World_LoadTraction", CMPM_ERROR_INVALID_INPUT, [&] {
-    Simulation& sim = lookup(world);
+    Held held = lookup(world);
+    Simulation& sim = held.sim();
     require(traction_json, "traction_json");
     if (!sim.model().has_traction())
       fail(CMPM_ERROR_INVALID_ARGUMENT, std::string("the ") + material_name(sim.model().material) + " material has no traction network");

@@ -40,6 +40,17 @@ public static class TestCrowdMPM {
       w.remove_agent(a);
       Raises(() => w.agent_state(a), "was removed", "stale agent id");
     }
+    // Snapshot at step 200, restored on 2 threads, run to the end: the uninterrupted run's hash.
+    string snap = System.IO.Path.Combine(System.IO.Path.GetTempPath(), "crowdmpm_cs_drill_200.snap");
+    using (World s = new World(drill)) {
+      s.step(200);
+      s.save_snapshot(snap);
+      using (World r = World.from_snapshot(snap, 2)) {
+        r.step(steps - 200);
+        Check(r.state_hash_hex() == hash, "restored snapshot hash " + r.state_hash_hex() + " equals " + hash);
+      }
+    }
+    Raises(() => World.from_snapshot(drill), "not a CrowdMPM snapshot", "a scenario is no snapshot");
     Raises(() => new World("{\"format\": \"crowdmpm-scenario\","), "invalid JSON", "bad JSON");
     Raises(() => World.null_world().step(1), "null world", "null world");
     World d = new World(drill);

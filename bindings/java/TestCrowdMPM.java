@@ -41,6 +41,18 @@ public class TestCrowdMPM {
     check(inside, "positions inside the domain");
     check(w.agent_ids().size() == n, "one id per agent");
 
+    // Snapshot at step 200, restored on 2 threads, run to the end: the uninterrupted run's hash.
+    String snap = System.getProperty("java.io.tmpdir") + "/crowdmpm_java_drill_200.snap";
+    World s = new World(drill);
+    s.step(200);
+    s.save_snapshot(snap);
+    World r = World.from_snapshot(snap, 2);
+    r.step(steps - 200);
+    check(r.state_hash_hex().equals(hash), "restored snapshot hash " + r.state_hash_hex() + " equals " + hash);
+    r.delete();
+    s.delete();
+    raises(() -> World.from_snapshot(drill), "not a CrowdMPM snapshot", "a scenario is no snapshot");
+
     raises(() -> new World("{\"format\": \"crowdmpm-scenario\","), "invalid JSON", "bad JSON");
     raises(() -> World.null_world().step(1), "null world", "null world");
     long a = w.add_agent(9.5, 4.0, "door");

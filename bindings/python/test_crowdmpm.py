@@ -22,6 +22,26 @@ class Bindings(unittest.TestCase):
         self.assertEqual(w.state_hash(), int(HASH, 16))
         self.assertAlmostEqual(w.time(), STEPS * 0.01)
 
+    def test_snapshot_continues_bit_identically(self):
+        import os
+        import tempfile
+        path = os.path.join(tempfile.mkdtemp(), "drill_200.snap")
+        w = crowdmpm.World(DRILL)
+        w.step(200)
+        w.save_snapshot(path)
+        r = crowdmpm.World.from_snapshot(path, threads=2)
+        self.assertAlmostEqual(r.time(), 2.0)
+        r.step(STEPS - 200)
+        self.assertEqual(r.state_hash_hex(), HASH)
+        with open(path, "rb") as f:
+            data = f.read()
+        with open(path + ".cut", "wb") as f:
+            f.write(data[: len(data) // 2])
+        with self.assertRaisesRegex(RuntimeError, "truncated snapshot"):
+            crowdmpm.World.from_snapshot(path + ".cut")
+        with self.assertRaisesRegex(RuntimeError, "not a CrowdMPM snapshot"):
+            crowdmpm.World.from_snapshot(DRILL)
+
     def test_bulk_reads_are_numpy(self):
         w = crowdmpm.World(DRILL, threads=2)
         w.step(10)

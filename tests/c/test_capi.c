@@ -56,16 +56,18 @@ static void test_hash_and_bulk_reads(void) {
   CHECK(cmpm_World_GetAgentCount(w, &n) == CMPM_OK);
   CHECK(n > 250);
   xy = (double*)malloc(sizeof(double) * 2 * (size_t)n);
-  CHECK(cmpm_World_GetPositions(w, xy, n, &written) == CMPM_OK);
-  CHECK(written == n);
-  for (i = 0; i < written; ++i) {
+  /* capacity counts doubles, the length of the buffer (ABI 2), as for every bulk read. */
+  CHECK(cmpm_World_GetPositions(w, xy, 2 * n, &written) == CMPM_OK);
+  CHECK(written == 2 * n);
+  for (i = 0; i < n; ++i) {
     if (xy[2 * i] < xmin) xmin = xy[2 * i];
     if (xy[2 * i] > xmax) xmax = xy[2 * i];
   }
   CHECK(xmin >= 0 && xmax <= 11); /* the drill's domain */
-  /* One short of the count: refused, nothing written. */
-  CHECK_FAILS(cmpm_World_GetPositions(w, xy, n - 1, &written), CMPM_ERROR_BUFFER_TOO_SMALL, "buffer holds");
+  /* One double short: refused, nothing written; a count of agents is no longer enough (issue 13's trap). */
+  CHECK_FAILS(cmpm_World_GetPositions(w, xy, 2 * n - 1, &written), CMPM_ERROR_BUFFER_TOO_SMALL, "buffer holds");
   CHECK(written == 0);
+  CHECK_FAILS(cmpm_World_GetVelocities(w, xy, n, &written), CMPM_ERROR_BUFFER_TOO_SMALL, "velocities (doubles)");
   free(xy);
   {
     int32_t nx = 0, ny = 0, wr = 0;
@@ -153,7 +155,7 @@ static void test_misuse(void) {
   CHECK_FAILS(cmpm_CreateWorld(&def, &w), CMPM_ERROR_INVALID_ARGUMENT, "threads");
   def.threads = 1;
   def.scenario_json = "{}";
-  CHECK_FAILS(cmpm_CreateWorld(&def, &w), CMPM_ERROR_INVALID_ARGUMENT, "exactly one of scenario_json or scenario_path");
+  CHECK_FAILS(cmpm_CreateWorld(&def, &w), CMPM_ERROR_INVALID_ARGUMENT, "exactly one of scenario_json, scenario_path or snapshot_path");
   def.scenario_path = NULL;
   def.scenario_json = "{\"format\": \"crowdmpm-scenario\", \"version\": 1,";
   CHECK_FAILS(cmpm_CreateWorld(&def, &w), CMPM_ERROR_INVALID_INPUT, "invalid JSON");
@@ -206,6 +208,82 @@ static void test_misuse(void) {
   /* A successful call clears the message. */
   CHECK(strcmp(cmpm_GetVersion(), "0.1.0") == 0);
   CHECK(cmpm_GetAbiVersion() == CMPM_ABI_VERSION);
+}
+
+/* Snapshots: save at step 200, restore (on another thread count), run both to 400: the same
+ * hash as the uninterrupted run; damaged files are refused with a clear error. */
+static void test_snapshots(void) {
+  const char* snap = "capi_drill_200.snap";
+  cmpm_WorldId a = make_drill(), b = {0, 0};
+  uint64_t ha = 0, hb = 0;
+  double t = 0;
+  cmpm_WorldDef def = cmpm_DefaultWorldDef();
+  CHECK(cmpm_World_Step(a, 200) == CMPM_OK);
+  remove(snap);
+  CHECK(cmpm_World_SaveSnapshot(a, snap) == CMPM_OK);
+  def.snapshot_path = snap;
+  def.threads = 2;
+  CHECK(cmpm_CreateWorld(&def, &b) == CMPM_OK);
+  CHECK(cmpm_World_GetTime(b, &t) == CMPM_OK && fabs(t - 2.0) < 1e-12);
+  CHECK(cmpm_World_Step(a, CMPM_EXPECTED_DRILL_STEPS - 200) == CMPM_OK);
+  CHECK(cmpm_World_Step(b, CMPM_EXPECTED_DRILL_STEPS - 200) == CMPM_OK);
+  CHECK(cmpm_World_GetStateHash(a, &ha) == CMPM_OK);
+  CHECK(cmpm_World_GetStateHash(b, &hb) == CMPM_OK);
+  CHECK(ha == CMPM_EXPECTED_DRILL_HASH);
+  CHECK(hb == CMPM_EXPECTED_DRILL_HASH);
+  CHECK(cmpm_DestroyWorld(b) == CMPM_OK);
+  CHECK_FAILS(cmpm_World_SaveSnapshot(a, NULL), CMPM_ERROR_INVALID_ARGUMENT, "path is NULL");
+  CHECK_FAILS(cmpm_World_SaveSnapshot(a, "/nonexistent-folder/x.snap"), CMPM_ERROR_INVALID_ARGUMENT, "cannot open for writing");
+  /* Truncated and corrupted copies. */
+  {
+    static char bytes[1 << 20];
+    FILE* f = fopen(snap, "rb");
+    size_t n = f ? fread(bytes, 1, sizeof bytes, f) : 0;
+    if (f) fclose(f);
+    CHECK(n > 1000 && n < sizeof bytes);
+    f = fopen("capi_cut.snap", "wb");
+    fwrite(bytes, 1, n / 2, f);
+    fclose(f);
+    def.snapshot_path = "capi_cut.snap";
+    CHECK_FAILS(cmpm_CreateWorld(&def, &b), CMPM_ERROR_INVALID_INPUT, "truncated snapshot");
+    bytes[n / 2] ^= 0x40;
+    f = fopen("capi_bad.snap", "wb");
+    fwrite(bytes, 1, n, f);
+    fclose(f);
+    def.snapshot_path = "capi_bad.snap";
+    CHECK_FAILS(cmpm_CreateWorld(&def, &b), CMPM_ERROR_INVALID_INPUT, "checksum");
+    def.snapshot_path = drill_path;
+    CHECK_FAILS(cmpm_CreateWorld(&def, &b), CMPM_ERROR_INVALID_INPUT, "not a CrowdMPM snapshot");
+    def.snapshot_path = snap;
+    def.model_path = drill_path;
+    CHECK_FAILS(cmpm_CreateWorld(&def, &b), CMPM_ERROR_INVALID_ARGUMENT, "a snapshot holds its model");
+    def.model_path = NULL;
+    def.scenario_path = drill_path;
+    CHECK_FAILS(cmpm_CreateWorld(&def, &b), CMPM_ERROR_INVALID_ARGUMENT, "exactly one of scenario_json, scenario_path or snapshot_path");
+  }
+  CHECK(cmpm_DestroyWorld(a) == CMPM_OK);
+}
+
+/* Bounded, confined input through the ABI (issue 13): a scenario naming /dev/zero as its model,
+ * with and without allow_outside_paths, and a tiny input limit. */
+static void test_input_limits(void) {
+  cmpm_WorldDef def = cmpm_DefaultWorldDef();
+  cmpm_WorldId w = {0, 0};
+  const char* zero_model =
+      "{\"format\": \"crowdmpm-scenario\", \"version\": 1, \"domain\": {\"min\": [0, 0], \"max\": [4, 4]},"
+      " \"time\": {\"dt\": 0.01, \"duration\": 1}, \"model\": \"/dev/zero\"}";
+  def.scenario_json = zero_model;
+  CHECK_FAILS(cmpm_CreateWorld(&def, &w), CMPM_ERROR_INVALID_INPUT, "lies outside the folder");
+  def.allow_outside_paths = 1;
+  CHECK_FAILS(cmpm_CreateWorld(&def, &w), CMPM_ERROR_INVALID_INPUT, "is not a regular file");
+  def.allow_outside_paths = 2;
+  CHECK_FAILS(cmpm_CreateWorld(&def, &w), CMPM_ERROR_INVALID_ARGUMENT, "allow_outside_paths must be 0 or 1");
+  def = cmpm_DefaultWorldDef();
+  def.scenario_path = drill_path;
+  def.max_input_bytes = 100;
+  CHECK_FAILS(cmpm_CreateWorld(&def, &w), CMPM_ERROR_INVALID_INPUT, "above the input limit");
+  def.max_input_bytes = -1;
+  CHECK_FAILS(cmpm_CreateWorld(&def, &w), CMPM_ERROR_INVALID_ARGUMENT, "max_input_bytes");
 }
 
 /* Learning through the ABI: a recording of people walking down the bottleneck corridor, written
@@ -289,6 +367,8 @@ int main(int argc, char** argv) {
   test_hash_and_bulk_reads();
   test_agents_and_parameters();
   test_misuse();
+  test_snapshots();
+  test_input_limits();
   test_train();
   printf("capi: %d passed, %d failed\n", passed, failed);
   return failed ? 1 : 0;

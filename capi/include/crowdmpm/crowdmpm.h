@@ -5,9 +5,30 @@
  * cmpm_GetLastError() on the same thread. Handles are small value structs: a zeroed handle is
  * null, and a destroyed world's handle is detected (generation count) rather than crashing.
  *
- * Units are SI: metres, seconds, persons/m^2, m/s. Buffers are owned by the caller; bulk reads
- * fill them and report how many items they wrote, and fail with CMPM_ERROR_BUFFER_TOO_SMALL
- * (writing nothing) if the capacity is short; query the count first.
+ * Units are SI: metres, seconds, persons/m^2, m/s. Buffers are owned by the caller. Every bulk
+ * read takes `capacity` as the number of elements of the buffer it is given (doubles for a
+ * double buffer, ids for an id buffer: the array's length, never a count of agents or nodes)
+ * and sets *out_written to the number of elements it wrote; it fails with
+ * CMPM_ERROR_BUFFER_TOO_SMALL (writing nothing) if the capacity is short. Positions take 2
+ * doubles per agent, a velocity field 2 per node: query the count or shape first.
+ *
+ * Thread contract (ABI version 2):
+ *  - Any function may be called from any thread. Calls on different worlds run concurrently;
+ *    calls on the same world are serialised (each holds the world for its whole duration), so
+ *    a read never sees a half-made step. cmpm_TrainModel and cmpm_PredictRecording use no
+ *    world and run concurrently with anything.
+ *  - cmpm_DestroyWorld while another thread is in a call on that world waits for that call to
+ *    return, then frees the world; calls that were waiting to start on it, and every later
+ *    call, fail with CMPM_ERROR_STALE_HANDLE. Memory is never freed under a running call.
+ *  - Checking a handle and destroying it are one atomic step: of two threads destroying the
+ *    same world, one gets CMPM_OK and the other CMPM_ERROR_STALE_HANDLE.
+ *  - cmpm_GetLastError is per thread. A world's own worker threads (threads > 1) are internal.
+ *  - Do not destroy a world from a thread that must not block: it waits for the call in progress.
+ *
+ * Input files (scenario, model, snapshot) must be regular files below an input size limit (256
+ * MiB unless max_input_bytes says otherwise); files a scenario names ("model", "extends") must
+ * lie inside its folder (scenario_json: the working directory) unless allow_outside_paths is 1
+ * (docs/scenario-format.md, "Files a scenario names"). Messages never quote file contents.
  *
  * The number of functions does not depend on the number of materials or force terms: the
  * material and its parameters are addressed by name, models and scenarios are JSON.
@@ -22,7 +43,7 @@
 #define CMPM_VERSION_MINOR 1
 #define CMPM_VERSION_PATCH 0
 /* Incremented whenever a struct layout or a function signature changes incompatibly. */
-#define CMPM_ABI_VERSION 1
+#define CMPM_ABI_VERSION 2
 
 #if defined(_WIN32)
 #  if defined(CROWDMPM_BUILDING)
@@ -68,17 +89,21 @@ typedef enum cmpm_Field {
   CMPM_FIELD_VELOCITY = 2   /* m/s, two values (vx, vy) per node */
 } cmpm_Field;
 
-/* World definition. Give the scenario as JSON text or as a file path (one of them), and
- * optionally a model as JSON text or path (otherwise the scenario's model, else the default).
- * File names inside scenario_json ("model", "extends") are relative to the working directory.
+/* World definition. Give the scenario as JSON text or as a file path, or a snapshot saved by
+ * cmpm_World_SaveSnapshot (exactly one of the three), and optionally a model as JSON text or
+ * path (otherwise the scenario's model, else the default; a snapshot holds its own model). File
+ * names inside scenario_json ("model", "extends") are relative to the working directory.
  * Strings are copied during cmpm_CreateWorld; the caller keeps ownership. */
 typedef struct cmpm_WorldDef {
   const char* scenario_json;
   const char* scenario_path;
   const char* model_json;
   const char* model_path;
-  int32_t threads;       /* worker threads, 1..256; results do not depend on it. Default 1. */
-  int32_t internal_cookie;  /* set by cmpm_DefaultWorldDef; do not touch */
+  const char* snapshot_path;   /* restore a saved world: it continues bit-identically */
+  int64_t max_input_bytes;     /* largest file read, bytes; 0: the default, 256 MiB */
+  int32_t allow_outside_paths; /* 1: a scenario may name files outside its folder. Default 0. */
+  int32_t threads;             /* worker threads, 1..256; results do not depend on it. Default 1. */
+  int32_t internal_cookie;     /* set by cmpm_DefaultWorldDef; do not touch */
 } cmpm_WorldDef;
 
 /* One agent. target: id of an exit or goal to walk to, or "nearest_exit"; NULL gives the
@@ -112,6 +137,13 @@ CMPM_API cmpm_Status cmpm_CreateWorld(const cmpm_WorldDef* def, cmpm_WorldId* ou
 CMPM_API cmpm_Status cmpm_DestroyWorld(cmpm_WorldId world);
 CMPM_API int32_t cmpm_World_IsValid(cmpm_WorldId world);  /* 1 if it refers to a live world */
 
+/* Saves the world to a snapshot file (docs/snapshot-format.md: versioned, checksummed; written
+ * to PATH.partial and renamed into place). cmpm_CreateWorld with snapshot_path restores it: the
+ * restored world continues exactly as this one would (same state hash after the same steps,
+ * on any thread count). A truncated, corrupted or newer snapshot is CMPM_ERROR_INVALID_INPUT
+ * naming the file and what is wrong. */
+CMPM_API cmpm_Status cmpm_World_SaveSnapshot(cmpm_WorldId world, const char* path);
+
 /* Advance by `steps` steps of the scenario's dt (0 <= steps <= 10,000,000). */
 CMPM_API cmpm_Status cmpm_World_Step(cmpm_WorldId world, int32_t steps);
 /* Change the step length, s, in (0, 0.1] and at most cell_size / (4 max_speed). The simulated
@@ -127,14 +159,16 @@ CMPM_API cmpm_Status cmpm_World_GetAgentCount(cmpm_WorldId world, int32_t* out_c
 CMPM_API cmpm_Status cmpm_World_GetExitedCount(cmpm_WorldId world, int32_t* out_count);
 
 /* Bulk reads of all live agents in a consistent order (the same order for every read between
- * two steps). capacity is in agents; positions and velocities write 2 doubles per agent. */
+ * two steps). capacity and *out_written count elements of `out`: ids for agent ids, doubles for
+ * the rest; positions and velocities take 2 doubles per agent (x0, y0, x1, y1, ...). */
 CMPM_API cmpm_Status cmpm_World_GetAgentIds(cmpm_WorldId world, cmpm_AgentId* out, int32_t capacity, int32_t* out_written);
 CMPM_API cmpm_Status cmpm_World_GetPositions(cmpm_WorldId world, double* out_xy, int32_t capacity, int32_t* out_written);
 CMPM_API cmpm_Status cmpm_World_GetVelocities(cmpm_WorldId world, double* out_vxy, int32_t capacity, int32_t* out_written);
 CMPM_API cmpm_Status cmpm_World_GetPressures(cmpm_WorldId world, double* out, int32_t capacity, int32_t* out_written);
 
 /* Grid fields of the current state. Node (i, j) is at origin + cell * (i, j); values are
- * row-major (j slowest). capacity is in doubles (nx * ny, or 2 * nx * ny for velocity). */
+ * row-major (j slowest). capacity and *out_written count doubles: nx * ny, or 2 * nx * ny for
+ * the velocity field. */
 CMPM_API cmpm_Status cmpm_World_GetFieldShape(cmpm_WorldId world, int32_t* out_nx, int32_t* out_ny,
                                               double* out_origin_x, double* out_origin_y, double* out_cell);
 /* field: a cmpm_Field value (passed as int32_t so that any value a host sends is well defined). */
@@ -167,7 +201,8 @@ CMPM_API cmpm_Status cmpm_World_LoadTraction(cmpm_WorldId world, const char* tra
  *    "options": {"window": 2, "stride": 1, "iterations": 120, "batch": 4, "learning_rate": 0.03,
  *                "clip": 1, "validation": 0.25, "eval_every": 5, "patience": 6, "seed": 1,
  *                "threads": 1, "params": [NAME, ...], "learn_network": true,
- *                "loss": "trajectory" | "grid_velocity", "desired_speed": "observed" | "scenario" | "free"}}
+ *                "loss": "trajectory" | "grid_velocity", "desired_speed": "observed" | "scenario" | "free"},
+ *    "input": {"max_bytes": 268435456, "allow_outside_paths": false}   (optional: input limits)}
  * Relative paths resolve from the working directory. Blocks until training ends (seconds to
  * minutes); the result does not depend on "threads". CMPM_ERROR_INVALID_INPUT for a request,
  * scenario, model or recording that does not parse or validate (the message names the JSON
@@ -179,7 +214,8 @@ CMPM_API cmpm_Status cmpm_TrainModel(const char* request_json, const char* out_m
  * errors (ADE/FDE per second of horizon, grid velocity error; the prediction.json format) to
  * out_json_path. request_json:
  *   {"scenario": PATH, "trajectories": PATH, "models": [PATH, ...], "observe": 2, "horizon": 4,
- *    "stride": (horizon), "windows": 0 (all), "threads": 1, "desired_speed": "observed" | "scenario" | "free"}
+ *    "stride": (horizon), "windows": 0 (all), "threads": 1, "desired_speed": "observed" | "scenario" | "free",
+ *    "input": {"max_bytes": 268435456, "allow_outside_paths": false}}
  * CMPM_ERROR_INVALID_INPUT as for cmpm_TrainModel, and when observe + horizon exceed the
  * recording. */
 CMPM_API cmpm_Status cmpm_PredictRecording(const char* request_json, const char* out_json_path);
