@@ -1,0 +1,27 @@
+// Trajectory text (PeTrack): parse, then everything observation does with a recording: counts,
+// duration, frames, the observed state at a frame and free speeds.
+#include <cstddef>
+#include <cstdint>
+#include <string>
+
+#include "engine/io/trajectory.hpp"
+#include "engine/observe/observe.hpp"
+
+using namespace crowdmpm;
+
+extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
+  const std::string text(reinterpret_cast<const char*>(data), size);
+  try {
+    const TrajectorySet t = TrajectorySet::parse(text, "fuzz");
+    (void)t.person_count();
+    if (!(t.duration() >= 0)) __builtin_trap();
+    const long mid = t.frame_min() + (t.frame_max() - t.frame_min()) / 2;
+    auto [b, e] = t.frame(mid);
+    if (e < b) __builtin_trap();
+    const ObservedState st = observe_at(t, mid, 0.5, 1.0);
+    if (st.ids.size() != st.x.size()) __builtin_trap();
+    (void)free_speeds(t, 1.0, mid);
+  } catch (const Error&) {
+  }
+  return 0;
+}
