@@ -5,7 +5,8 @@ set -euo pipefail
 SUDO=""
 if [ "$(id -u)" != 0 ]; then SUDO=sudo; fi
 PACKAGES=(cmake make g++ libeigen3-dev libopencv-dev nlohmann-json3-dev catch2
-          swig python3-dev python3-numpy default-jdk-headless mono-mcs mono-runtime clang)
+          swig python3-dev python3-numpy default-jdk-headless mono-mcs mono-runtime clang
+          libclang-rt-14-dev)
 missing=()
 for p in "${PACKAGES[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
