@@ -2,6 +2,7 @@
 // every entry point that turns any C++ exception into a status and a thread-local message.
 #include "crowdmpm/crowdmpm.h"
 
+#include <atomic>
 #include <climits>
 #include <cmath>
 #include <cstring>
@@ -35,8 +36,16 @@ struct ApiError {
 // progress (the header's thread contract).
 struct Box {
   std::mutex call;
+  // Set by cmpm_DestroyWorld as it invalidates the handle (before it waits for the call lock):
+  // a call that was already waiting for the lock may get it first (mutexes are not fair), and
+  // must then fail as stale instead of running on a world being destroyed.
+  std::atomic<bool> dead{false};
   std::unique_ptr<Simulation> sim;  // null once destroyed
 };
+
+// A slot whose generation reached this is retired: a wrapped generation would let a stale
+// handle address a new world.
+constexpr uint32_t kRetiredGeneration = 0xffffffffu;
 
 struct Slot {
   std::shared_ptr<Box> box;  // null: free slot
@@ -48,26 +57,38 @@ std::vector<Slot> g_slots;
 
 [[noreturn]] void fail(cmpm_Status s, const std::string& msg) { throw ApiError{s, msg}; }
 
+// Sets the thread's message; never throws (out of memory while building it leaves a fixed text).
+void set_error(const char* fn, const char* prefix, const char* what) noexcept {
+  try {
+    g_last_error = std::string(fn) + ": " + prefix + what;
+  } catch (...) {
+    try {
+      g_last_error.assign("out of memory");
+    } catch (...) {
+    }
+  }
+}
+
 template <class F>
-cmpm_Status guard(const char* fn, cmpm_Status input_status, F&& f) {
+cmpm_Status guard(const char* fn, cmpm_Status input_status, F&& f) noexcept {
   try {
     f();
     g_last_error.clear();
     return CMPM_OK;
   } catch (const ApiError& e) {
-    g_last_error = std::string(fn) + ": " + e.message;
+    set_error(fn, "", e.message.c_str());
     return e.status;
   } catch (const Error& e) {
-    g_last_error = std::string(fn) + ": " + e.what();
+    set_error(fn, "", e.what());
     return input_status;
   } catch (const std::bad_alloc&) {
-    g_last_error = std::string(fn) + ": out of memory";
+    set_error(fn, "", "out of memory");
     return CMPM_ERROR_INTERNAL;
   } catch (const std::exception& e) {
-    g_last_error = std::string(fn) + ": internal error: " + e.what();
+    set_error(fn, "internal error: ", e.what());
     return CMPM_ERROR_INTERNAL;
   } catch (...) {
-    g_last_error = std::string(fn) + ": internal error (unknown exception)";
+    set_error(fn, "internal error (unknown exception)", "");
     return CMPM_ERROR_INTERNAL;
   }
 }
@@ -105,8 +126,14 @@ Held lookup(cmpm_WorldId w) {
   }
   std::unique_lock<std::mutex> lock(box->call);
   // Destroyed while this call waited for another call on the same world to finish.
-  if (!box->sim) fail(CMPM_ERROR_STALE_HANDLE, describe(w) + " was destroyed");
+  if (box->dead || !box->sim) fail(CMPM_ERROR_STALE_HANDLE, describe(w) + " was destroyed");
   return Held(std::move(box), std::move(lock));
+}
+
+int32_t as_count(size_t n, const char* what) {
+  if (n > static_cast<size_t>(INT32_MAX))
+    fail(CMPM_ERROR_INTERNAL, std::string(what) + ": " + std::to_string(n) + " is more than an int32_t count can report");
+  return static_cast<int32_t>(n);
 }
 
 template <class T>
@@ -222,7 +249,7 @@ cmpm_Status cmpm_CreateWorld(const cmpm_WorldDef* def, cmpm_WorldId* out_world) 
     box->sim = std::move(sim);
     std::lock_guard<std::mutex> lock(g_registry_mutex);
     size_t i = 0;
-    while (i < g_slots.size() && g_slots[i].box) ++i;
+    while (i < g_slots.size() && (g_slots[i].box || g_slots[i].generation == kRetiredGeneration)) ++i;
     if (i == g_slots.size()) {
       if (g_slots.size() >= 0xffffffffu) fail(CMPM_ERROR_INTERNAL, "too many worlds");
       g_slots.emplace_back();
@@ -242,7 +269,8 @@ cmpm_Status cmpm_DestroyWorld(cmpm_WorldId world) {
       std::lock_guard<std::mutex> registry(g_registry_mutex);
       Slot& slot = live_slot(world);
       box = std::move(slot.box);
-      ++slot.generation;
+      box->dead = true;
+      ++slot.generation;  // reaching kRetiredGeneration retires the slot
     }
     // Wait for a call in progress on the world (it holds the call lock), then free it; calls
     // that were waiting find it destroyed.
@@ -253,8 +281,13 @@ cmpm_Status cmpm_DestroyWorld(cmpm_WorldId world) {
 
 int32_t cmpm_World_IsValid(cmpm_WorldId world) {
   if (world.index1 == 0) return 0;
-  std::lock_guard<std::mutex> lock(g_registry_mutex);
-  return world.index1 <= g_slots.size() && g_slots[world.index1 - 1].box && g_slots[world.index1 - 1].generation == world.generation;
+  try {
+    std::lock_guard<std::mutex> lock(g_registry_mutex);
+    return world.index1 <= g_slots.size() && g_slots[world.index1 - 1].box &&
+           g_slots[world.index1 - 1].generation == world.generation;
+  } catch (...) {  // a mutex that cannot be locked (std::system_error): report "not valid"
+    return 0;
+  }
 }
 
 cmpm_Status cmpm_World_SaveSnapshot(cmpm_WorldId world, const char* path) {
@@ -304,14 +337,14 @@ cmpm_Status cmpm_World_GetStateHash(cmpm_WorldId world, uint64_t* out_hash) {
 cmpm_Status cmpm_World_GetAgentCount(cmpm_WorldId world, int32_t* out_count) {
   return guard("cmpm_World_GetAgentCount", CMPM_ERROR_INVALID_ARGUMENT, [&] {
     require(out_count, "out_count");
-    *out_count = static_cast<int32_t>(lookup(world).sim().world().size());
+    *out_count = as_count(lookup(world).sim().world().size(), "agents");
   });
 }
 
 cmpm_Status cmpm_World_GetExitedCount(cmpm_WorldId world, int32_t* out_count) {
   return guard("cmpm_World_GetExitedCount", CMPM_ERROR_INVALID_ARGUMENT, [&] {
     require(out_count, "out_count");
-    *out_count = static_cast<int32_t>(lookup(world).sim().exit_events().size());
+    *out_count = as_count(lookup(world).sim().exit_events().size(), "exited agents");
   });
 }
 
@@ -380,6 +413,7 @@ cmpm_Status cmpm_World_GetField(cmpm_WorldId world, int32_t field, double* out, 
   return guard("cmpm_World_GetField", CMPM_ERROR_INVALID_ARGUMENT, [&] {
     Held held = lookup(world);
     const Simulation& sim = held.sim();
+    if (sim.failed()) fail(CMPM_ERROR_SIMULATION, "the world became unstable (non-finite state): it has no fields");
     if (field != CMPM_FIELD_DENSITY && field != CMPM_FIELD_PRESSURE && field != CMPM_FIELD_VELOCITY)
       fail(CMPM_ERROR_INVALID_ARGUMENT, "unknown field " + std::to_string(field) + " (0 density, 1 pressure, 2 velocity)");
     const size_t n = sim.grid().nodes() * (field == CMPM_FIELD_VELOCITY ? 2 : 1);

@@ -2,8 +2,10 @@
 // world equals the uninterrupted run's, byte for byte; damaged snapshots give clear errors.
 #include <catch2/catch.hpp>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 
+#include "engine/core/binary.hpp"
 #include "engine/sim/snapshot.hpp"
 #include "support.hpp"
 
@@ -67,6 +69,63 @@ TEST_CASE("snapshot: changes made through the API travel with it", "[snapshot]")
   a.set_model(m);
   a.set_time_step(0.005);
   check_continues(a, 100, 300, 2);
+}
+
+TEST_CASE("snapshot: a social force world whose time step changed continues identically", "[snapshot]") {
+  // The social force widens its neighbour cells by 2 max_speed dt: a restore must size them as
+  // they were, not from the current dt.
+  ScenarioDef s = ScenarioDef::load(test::scenario_path("bottleneck"));
+  Simulation a(s, Model::default_of("social_force"), 1);
+  a.run_steps(30);
+  a.set_time_step(0.005);
+  check_continues(a, 30, 120, 2);
+}
+
+TEST_CASE("snapshot: a world saved with a time step its scenario file would refuse restores", "[snapshot]") {
+  ScenarioDef s = ScenarioDef::load(test::scenario_path("drill"));
+  Simulation a(s, test::model_of(s), 1);
+  a.set_time_step(0.005);
+  Model m = a.model();
+  m.set("max_speed", 18);  // dt max_speed <= cell / 4: valid for dt 0.005, too fast for the file's 0.01
+  a.set_model(m);
+  check_continues(a, 20, 60, 1);
+}
+
+TEST_CASE("snapshot: mutated state with a valid checksum is refused or restores, never crashes", "[snapshot]") {
+  // A deterministic miniature of tests/fuzz/fuzz_snapshot.cpp: every 5th byte of the state after
+  // the JSON strings, flipped three ways, with length and checksum fixed up.
+  ScenarioDef s = ScenarioDef::parse_text(R"({"format": "crowdmpm-scenario", "version": 1, "domain": {"min": [0, 0], "max": [6, 4]},
+    "time": {"dt": 0.01, "duration": 10}, "geometry": {"exits": [{"id": "door", "rect": [5.5, 1, 6, 3]}]},
+    "groups": [{"id": "g", "spawn": {"rect": [0.5, 0.5, 3, 3.5]}, "count": 6, "behaviour": {"type": "goal", "target": "door"}}]})");
+  Simulation a(s, test::model_of(s), 1);
+  a.run_steps(5);
+  const std::string snap = save_snapshot(a);
+  const size_t header = 24, length = snap.size() - header - 8;
+  // Skip the three JSON strings (scenario, name, model): their damage is JSON errors.
+  size_t at = header;
+  for (int k = 0; k < 3; ++k) {
+    uint64_t n;
+    std::memcpy(&n, snap.data() + at, 8);
+    at += 8 + n;
+  }
+  int refused = 0, restored = 0;
+  for (size_t i = at; i < header + length; i += 5)
+    for (unsigned char x : {0x01, 0x80, 0xff}) {
+      std::string bad = snap;
+      bad[i] = static_cast<char>(bad[i] ^ x);
+      const uint64_t sum = fnv1a64(bad.data() + header, length);
+      std::memcpy(&bad[header + length], &sum, 8);
+      try {
+        auto b = restore_snapshot(bad, "m.snap", 1);
+        b->run_steps(2);
+        ++restored;
+      } catch (const Error&) {
+        ++refused;
+      }
+    }
+  INFO("refused " << refused << ", restored " << restored);
+  CHECK(refused > 0);
+  CHECK(refused + restored > 1000);
 }
 
 TEST_CASE("snapshot: files are written whole and read back", "[snapshot]") {

@@ -35,6 +35,9 @@ void Simulation::set_time_step(double dt) {
   time_at_dt_change_ = time();
   steps_at_dt_change_ = steps_;
   scenario_.dt = dt;
+  // The social force keeps a step's neighbour lists through its substeps, widened by the most
+  // two people close in one step: a longer step needs wider lists.
+  if (!model_.is_continuum()) init_neighbours(neighbour_reach());
 }
 
 Simulation::Simulation(const ScenarioDef& scenario, const Model& model, int threads)
@@ -87,6 +90,11 @@ void Simulation::set_model(const Model& m) {
     if (info.sets_up_world && m.params.*info.field != model_.params.*info.field)
       throw Error(std::string(info.name) + " is fixed once a world exists (it sizes and places agents, or shapes navigation)");
   check_time_step(scenario_, m, scenario_.dt);
+  if (m.has_traction())
+    for (const auto& g : scenario_.groups)  // sources still to spawn with these comfort distances
+      if (m.params.contact_epsilon >= g.comfort_distance.value_or(m.params.comfort_distance))
+        throw Error("contact_epsilon " + format_number(m.params.contact_epsilon) + " m must be smaller than the comfort distance of " +
+                    g.path + " (" + format_number(g.comfort_distance.value_or(m.params.comfort_distance)) + " m)");
   if (m.has_traction())
     for (size_t p = 0; p < world_.size(); ++p)
       if (m.params.contact_epsilon >= world_.comfort[p])
@@ -369,13 +377,17 @@ double Simulation::neighbour_reach() const {
 }
 
 void Simulation::init_neighbours(double reach) {
-  neighbour_reach_ = reach;
   // The social force keeps a step's neighbour lists through its substeps: pairs may close by
   // up to 2 max_speed dt meanwhile, so the lists reach that much further.
   if (!model_.is_continuum()) reach += 2 * model_.params.max_speed * scenario_.dt;
+  size_neighbour_cells(reach);
+}
+
+void Simulation::size_neighbour_cells(double cell_reach) {
+  neighbour_reach_ = cell_reach;
   // Bound the number of cells (huge venues): larger cells cost time, not correctness.
   const Vec2 ext = scenario_.geo.hi - scenario_.geo.lo;
-  neighbours_.init(scenario_.geo, reach, std::sqrt(ext.x() * ext.y() / 2e7));
+  neighbours_.init(scenario_.geo, cell_reach, std::sqrt(ext.x() * ext.y() / 2e7));
 }
 
 void Simulation::prepare_derived() {

@@ -52,6 +52,8 @@ class Simulation {
   void set_time_step(double dt);
   void run_steps(long n);
   bool finished() const;
+  // The state became non-finite (a step threw UnstableError): no further steps, fields or snapshots.
+  bool failed() const { return failed_; }
 
   // Simulated time: steps since the last change of dt times dt, plus the time reached then
   // (so that changing dt never rewrites the past, and without a change time = steps * dt exactly).
@@ -116,6 +118,7 @@ class Simulation {
   void prepare_derived();  // drive, traction and P2G on the current state, so pressure is defined
   void step_social_force(const StepInputs& in);  // the social_force model's motion (no grid)
   void init_neighbours(double reach);
+  void size_neighbour_cells(double cell_reach);  // the cell lists for exactly this reach
   double neighbour_reach() const;
   AgentDef agent_template(const GroupDef& g, int group_index) const;
 
@@ -143,7 +146,7 @@ class Simulation {
   // reference volumes each add recomputes, so that all of them see the whole batch.
   size_t batch_start_ = 0;
   double max_radius_ = 0, max_comfort_ = 0, max_v0_ = 0;  // over agents added so far (for the cell lists)
-  double neighbour_reach_ = 0;      // the reach the cell lists were last sized for (init_neighbours)
+  double neighbour_reach_ = 0;      // the reach the cell lists were last sized for (size_neighbour_cells)
   std::vector<int> exit_of_;        // scratch of retire_at_exits
   std::vector<size_t> first_bad_;   // scratch of check_finite
   bool profiling_ = false;

@@ -94,23 +94,31 @@ struct SnapshotCodec {
     }
     const double dt = r.f64("time step");
     const double duration = r.f64("duration");
-    auto sim = std::make_unique<Simulation>(scenario, model, threads);
-    Simulation& s = *sim;
+    // The time step and duration as they were (the API or --duration may have changed them);
+    // set before building, so that the world is built and checked with them. The document keeps
+    // the values it was parsed with (sources' windows default to its duration).
+    if (!(dt > 0 && dt <= 0.1)) r.fail("time step", "must be in (0, 0.1] s");
+    if (!(duration >= 0 && duration <= 1e9)) r.fail("duration", "must be in [0, 1e9] s");
+    scenario.dt = dt;
+    scenario.duration = duration;
+    std::unique_ptr<Simulation> sim;
     try {
-      s.set_time_step(dt);
-      s.set_duration(duration);
+      sim = std::make_unique<Simulation>(scenario, model, threads);
     } catch (const Error& e) {
-      r.fail("time step", e.what());
+      r.fail("scenario and model", e.what());
     }
+    Simulation& s = *sim;
     s.steps_ = r.i64("clock");
     s.steps_at_dt_change_ = r.i64("clock");
     s.time_at_dt_change_ = r.f64("clock");
-    if (s.steps_ < 0 || s.steps_at_dt_change_ < 0 || s.steps_at_dt_change_ > s.steps_ || !std::isfinite(s.time_at_dt_change_) ||
-        s.time_at_dt_change_ < 0)
-      r.fail("clock", "step counts and time must be >= 0 and in order");
+    constexpr long kMaxSteps = 1L << 53;  // far beyond any run; keeps ++steps_ and time() exact
+    if (s.steps_ < 0 || s.steps_ > kMaxSteps || s.steps_at_dt_change_ < 0 || s.steps_at_dt_change_ > s.steps_ ||
+        !(s.time_at_dt_change_ >= 0 && s.time_at_dt_change_ <= 1e12))
+      r.fail("clock", "step counts and time must be >= 0, in order and in range");
     s.rng_.set_state(r.u64("random state"));
-    s.failed_ = r.u32("failed flag") != 0;
+    if (r.u32("failed flag") != 0) r.fail("failed flag", "a world that became unstable has no state to restore");
     s.spawned_ = r.i64("spawned count");
+    if (s.spawned_ < 0) r.fail("spawned count", "negative");
     s.batch_start_ = r.u64("batch start");
     s.max_radius_ = r.f64("cell list sizes");
     s.max_comfort_ = r.f64("cell list sizes");
@@ -120,7 +128,12 @@ struct SnapshotCodec {
       if (!(v >= 0 && v <= 1e3)) r.fail("cell list sizes", "out of range");
     const uint64_t behaviours = r.u64("behaviour count");
     std::vector<std::string> targets;
-    r.array(targets, "added targets", 8, [&] { return r.str("added target"); });
+    // Each added target is a distinct exit or goal (or "nearest_exit").
+    const size_t max_targets = s.scenario_.geo.exits.size() + s.scenario_.geo.goals.size() + 1;
+    r.array(targets, "added targets", 8, [&] {
+      if (targets.size() >= max_targets) r.fail("added targets", "more than the scenario's exits and goals");
+      return r.str("added target");
+    });
     for (const auto& t : targets) {
       try {
         s.behaviour_for_target(t);
@@ -132,14 +145,24 @@ struct SnapshotCodec {
       r.fail("behaviour count", "the scenario gives " + std::to_string(s.behaviours_.size()) + " behaviours, the snapshot " +
                                     std::to_string(behaviours));
     r.array(s.exit_events_, "exit events", 24, [&] {
-      ExitEvent e{r.u64("exit event"), static_cast<int>(r.i64("exit event")), r.f64("exit event")};
-      if (e.exit < 0 || static_cast<size_t>(e.exit) >= s.scenario_.geo.exits.size()) r.fail("exit event", "no such exit");
-      return e;
+      const EntityId id = r.u64("exit event");
+      const int64_t exit = r.i64("exit event");
+      const double t = r.f64("exit event");
+      if (exit < 0 || static_cast<uint64_t>(exit) >= s.scenario_.geo.exits.size()) r.fail("exit event", "no such exit");
+      if (!(t >= 0 && t <= 1e12)) r.fail("exit event", "time out of range");
+      return ExitEvent{id, static_cast<int>(exit), t};
     });
-    r.array(s.source_accum_, "source counters", 8, [&] { return r.f64("source counter"); });
+    r.array(s.source_accum_, "source counters", 8, [&] {
+      const double a = r.f64("source counter");
+      if (!(a >= 0 && a <= 1e9)) r.fail("source counter", "out of range");
+      return a;
+    });
     r.array(s.source_spawned_, "source counters", 8, [&] { return static_cast<long>(r.i64("source counter")); });
     if (s.source_accum_.size() != s.scenario_.groups.size() || s.source_spawned_.size() != s.scenario_.groups.size())
       r.fail("source counters", "one per group and source expected");
+    for (size_t g = 0; g < s.source_spawned_.size(); ++g)
+      if (s.source_spawned_[g] < 0 || s.source_spawned_[g] > std::max(0, s.scenario_.groups[g].max_count))
+        r.fail("source counters", "a source spawned more than its max_count, or a negative count");
     read_world(r, s);
     Grid& g = s.grid_;
     const size_t nodes = g.nodes();
@@ -151,7 +174,8 @@ struct SnapshotCodec {
     grid_array(g.velocity, "grid velocity", [&] { return r.vec2("grid velocity"); });
     grid_array(g.velocity_old, "grid velocity", [&] { return r.vec2("grid velocity"); });
     if (s.batch_start_ > s.world_.size()) r.fail("batch start", "beyond the agents");
-    s.init_neighbours(reach);
+    if (reach < s.neighbour_reach() - 1e-12 * (1 + reach)) r.fail("cell list sizes", "the cells are narrower than the agents' reach");
+    s.size_neighbour_cells(reach);
     return sim;
   }
 
@@ -191,8 +215,10 @@ struct SnapshotCodec {
                      w.behaviour.size(), w.group.size(), w.accel.size(), w.heading.size(), w.free_speed.size(),
                      w.pair_force.size(), w.pair_virial.size(), w.pressure.size()})
       if (k != n) r.fail("agents", "component arrays of different lengths");
-    // Ids and their slots must agree: every live id maps to its index, every other slot is -1.
-    if (w.next_id_ == 0 || w.slot_.size() > w.next_id_) r.fail("id slots", "more slots than ids handed out");
+    // Ids and their slots must agree: one slot per id handed out (ids start at 1; id 0 is never
+    // valid), every live id maps to its index, every other slot is -1.
+    if (!(w.slot_.size() == w.next_id_ || (w.slot_.empty() && w.next_id_ == 1))) r.fail("id slots", "do not match the next id");
+    if (!w.slot_.empty() && w.slot_[0] != -1) r.fail("id slots", "id 0 is never valid");
     size_t live = 0;
     for (size_t e = 0; e < w.slot_.size(); ++e) {
       const long i = w.slot_[e];
@@ -201,14 +227,22 @@ struct SnapshotCodec {
       ++live;
     }
     if (live != n) r.fail("id slots", "do not match the ids");
-    for (size_t p = 0; p < n; ++p)
+    const double far = 2 * kMaxCoordinate;
+    for (size_t p = 0; p < n; ++p) {
       if (!(w.radius[p] >= 0.05 && w.radius[p] <= 0.5) || !(w.comfort[p] >= 0.01 && w.comfort[p] <= 2) ||
-          !(w.v0[p] >= 0 && w.v0[p] <= 12) || !(w.J[p] > 0))
+          !(w.v0[p] >= 0 && w.v0[p] <= 12) || !(w.J[p] > 0 && w.J[p] <= 1e6))
         r.fail("agents", "agent " + std::to_string(w.id[p]) + " has a radius, comfort distance, speed or volume out of range");
+      // Finite and in range: the step casts positions to cell indices.
+      if (!(w.x[p].cwiseAbs().maxCoeff() <= far) || !(w.v[p].cwiseAbs().maxCoeff() <= 1e3) || !w.C[p].allFinite() ||
+          !w.F[p].allFinite() || !w.accel[p].allFinite() || !w.heading[p].allFinite() || !std::isfinite(w.free_speed[p]) ||
+          !w.pair_force[p].allFinite() || !std::isfinite(w.pair_virial[p]) || !std::isfinite(w.pressure[p]))
+        r.fail("agents", "agent " + std::to_string(w.id[p]) + " has a non-finite or out-of-range state");
+    }
   }
 };
 
 std::string save_snapshot(const Simulation& sim) {
+  if (sim.failed()) throw Error("the world became unstable (non-finite state) at t = " + format_number(sim.time()) + " s: there is no state to save");
   BinaryWriter payload;
   SnapshotCodec::write(payload, sim);
   BinaryWriter out;
