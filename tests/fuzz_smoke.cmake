@@ -2,7 +2,7 @@
 # the C ABI's C99 test there under the same sanitizers, then runs each fuzz target for SECONDS
 # seconds from the committed seed corpus (and the shipped scenarios, models and tests/bad):
 # any crash, leak, UB report, input slower than 10 s or memory above 2 GB fails the test.
-# cmake -DSRC=<repo> -DBIN=<tree> -DCC=<clang> -DCXX=<clang++> [-DSECONDS=30] -P fuzz_smoke.cmake
+# cmake -DSRC=<repo> -DBIN=<tree> -DCC=<clang> -DCXX=<clang++> [-DSECONDS=30] [-DTARGETS=a,b] -P fuzz_smoke.cmake
 if(NOT SECONDS)
   set(SECONDS 30)
 endif()
@@ -12,7 +12,11 @@ execute_process(COMMAND ${CMAKE_COMMAND} -S ${SRC} -B ${BIN} -DCMAKE_BUILD_TYPE=
 if(NOT rc EQUAL 0)
   message(FATAL_ERROR "configuring the fuzz build failed")
 endif()
-set(targets scenario model trajectory snapshot capi)
+if(TARGETS)
+  string(REPLACE "," ";" targets "${TARGETS}")
+else()
+  set(targets scenario model trajectory snapshot capi)
+endif()
 set(build_targets test_capi)
 foreach(t ${targets})
   list(APPEND build_targets fuzz_${t})

@@ -190,7 +190,11 @@ TEST_CASE("extends chains in scenario files apply in order and resolve paths fro
   save_json_file(soft.to_json(), (dir / "models" / "soft.json").string());
   write_text(dir / "room_soft.json", R"({"extends": "room.json", "model": "models/soft.json", "seed": 5})");
   write_text(dir / "variants" / "long.json", R"({"extends": "../room_soft.json", "time": {"duration": 50}})");
-  const ScenarioDef s = ScenarioDef::load((dir / "variants" / "long.json").string());
+  // The base lies outside the variant's folder: refused unless the caller allows it.
+  CHECK_THROWS_WITH(ScenarioDef::load((dir / "variants" / "long.json").string()), Catch::Contains("lies outside the folder"));
+  InputPolicy outside;
+  outside.allow_outside_paths = true;
+  const ScenarioDef s = ScenarioDef::load((dir / "variants" / "long.json").string(), outside);
   CHECK(s.duration == 50);
   CHECK(s.dt == 0.01);
   CHECK(s.seed == 5);

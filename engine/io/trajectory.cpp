@@ -121,6 +121,15 @@ size_t TrajectorySet::person_count() const {
   return ids.size();
 }
 
+long TrajectorySet::skip_gap(long f, long stride) const {
+  auto [b, e] = frame(f);
+  if (b != e) return f;
+  if (e == points.data() + points.size()) return frame_max() + 1;
+  const long next = e->frame;  // the first recorded frame after f
+  const long k = (next - f + stride - 1) / stride;
+  return f + k * stride;
+}
+
 std::pair<const TrackPoint*, const TrackPoint*> TrajectorySet::frame(long f) const {
   auto lo = std::lower_bound(points.begin(), points.end(), f, [](const TrackPoint& p, long fr) { return p.frame < fr; });
   auto hi = std::upper_bound(lo, points.end(), f, [](long fr, const TrackPoint& p) { return fr < p.frame; });

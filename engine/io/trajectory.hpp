@@ -37,6 +37,11 @@ class TrajectorySet {
   double duration() const { return framerate > 0 ? static_cast<double>(frame_max() - frame_min()) / framerate : 0; }
   // The points of one frame (a contiguous, id-sorted range).
   std::pair<const TrackPoint*, const TrackPoint*> frame(long f) const;
+  // For loops over frames f, f + stride, ...: f itself if it has rows, else the first frame of
+  // that sequence at or after the next recorded frame (frame_max() + 1 if none). Loops that
+  // step through it cost the number of recorded frames, not the span of frame numbers (a
+  // recording may leave a gap of any length).
+  long skip_gap(long f, long stride) const;
 };
 
 // Writes frames of a world as "id frame x y z" rows under a "# framerate:" header (metres).

@@ -149,7 +149,8 @@ void make_windows(const std::vector<TrainDataset>& data, const TrainOptions& o, 
                     format_number(1 / t.framerate) + " s)");
       const long stride = std::max(1L, std::lround(o.stride * t.framerate));
       std::vector<long> starts;
-      for (long f = t.frame_min() + history; f + length <= t.frame_max(); f += stride) starts.push_back(f);
+      for (long f = t.skip_gap(t.frame_min() + history, stride); f + length <= t.frame_max(); f = t.skip_gap(f + stride, stride))
+        starts.push_back(f);
       const size_t n_val = static_cast<size_t>(std::ceil(o.validation_fraction * static_cast<double>(starts.size())));
       const size_t n_train = starts.size() - std::min(starts.size(), n_val);
       const long val_start = n_train < starts.size() ? starts[n_train] : std::numeric_limits<long>::max();

@@ -14,7 +14,7 @@ std::vector<DensitySpeed> classic_density_speed(const TrajectorySet& t, const Ve
   const double area = (hi.x() - lo.x()) * (hi.y() - lo.y());
   const long step = std::max(1L, std::lround(every * t.framerate));
   std::vector<DensitySpeed> out;
-  for (long f = t.frame_min(); f < t.frame_max(); f += step) {
+  for (long f = t.frame_min(); f < t.frame_max(); f = t.skip_gap(f + step, step)) {
     auto [b, e] = t.frame(f);
     auto [nb, ne] = t.frame(f + 1);
     std::unordered_map<long, Vec2> next;

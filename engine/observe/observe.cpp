@@ -14,11 +14,15 @@ ObservedState observe_at(const TrajectorySet& t, long frame, double velocity_win
   // Each person's latest recorded position at or before `target` frames, searching no further
   // back than `limit` (recordings sampled every few frames, such as ETH/UCY's every 10th,
   // have no row exactly `back` frames earlier).
+  // Over the recorded rows, latest first (not over frame numbers: a recording may leave gaps
+  // of any length between frames).
   auto history = [&](long target, long limit) {
     std::unordered_map<long, std::pair<long, Vec2>> at;  // id -> (frame, position)
-    for (long f = target; f >= limit; --f) {
-      auto [b, e] = t.frame(f);
-      for (auto p = b; p != e; ++p) at.emplace(p->id, std::make_pair(f, Vec2(p->x, p->y)));
+    const TrackPoint* first = t.frame(limit).first;
+    if (limit > target) return at;
+    for (const TrackPoint* p = t.frame(target).second; p != first;) {
+      --p;
+      at.emplace(p->id, std::make_pair(p->frame, Vec2(p->x, p->y)));
     }
     return at;
   };
@@ -52,9 +56,9 @@ const char* desired_speed_name(DesiredSpeed d) {
 std::unordered_map<long, double> free_speeds(const TrajectorySet& t, double speed_window, long last) {
   const long lag = std::max(1L, std::lround(speed_window * t.framerate));
   std::unordered_map<long, std::vector<std::pair<long, Vec2>>> tracks;
-  for (long f = t.frame_min(); f <= std::min(last, t.frame_max()); ++f) {
-    auto [b, e] = t.frame(f);
-    for (auto p = b; p != e; ++p) tracks[p->id].emplace_back(f, Vec2(p->x, p->y));
+  for (const TrackPoint& p : t.points) {  // sorted by frame: each track in time order
+    if (p.frame > last) break;
+    tracks[p.id].emplace_back(p.frame, Vec2(p.x, p.y));
   }
   std::unordered_map<long, double> out;
   for (auto& [id, track] : tracks) {
