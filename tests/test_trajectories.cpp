@@ -8,6 +8,7 @@
 
 #include "engine/io/trajectory.hpp"
 #include "engine/observe/measure.hpp"
+#include "engine/observe/observe.hpp"
 #include "support.hpp"
 
 using namespace crowdmpm;
@@ -48,6 +49,19 @@ TEST_CASE("trajectory text: ids and frames beyond the range of long are refused"
   const TrajectorySet t = TrajectorySet::parse("# framerate: 10\n1 0 1 2\n1 1000000000000 1 2\n", "h.txt");
   CHECK(t.frame_max() == 1000000000000L);
   CHECK(t.duration() == Approx(1e11));
+}
+
+// fuzz_trajectory's timeout: a recording with a gap of a trillion frames. Loops that walked every
+// frame number of the gap never ended; they now step over recorded rows.
+TEST_CASE("trajectory text: a gap of 1e12 frames costs nothing to observe and measure and cut into windows", "[trajectories]") {
+  const TrajectorySet t = TrajectorySet::parse("# framerate: 10\n1 0 0 0\n1 1 0.1 0\n1 2 0.2 0\n1 999999999998 5 5\n1 999999999999 5.1 5\n", "gap.txt");
+  const ObservedState s = observe_at(t, 999999999999L, 0.1, 1.0);
+  REQUIRE(s.ids.size() == 1);
+  CHECK(s.v[0].x() == Approx(1.0));
+  CHECK(free_speeds(t, 0.1).at(1) == Approx(1.0));
+  CHECK(classic_density_speed(t, Vec2(-1, -1), Vec2(6, 6), 0.1).size() == 4);  // the recorded frames, not 1e11 samples
+  CHECK(t.skip_gap(3, 10) == 1000000000003L);  // the first frame of 3, 13, 23, ... after 999999999998
+  CHECK(t.skip_gap(1000000000000L, 1) == t.frame_max() + 1);
 }
 
 // Messages never quote what a file holds (it may be a secret the scenario was made to name).
