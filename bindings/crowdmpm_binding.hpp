@@ -100,8 +100,8 @@ class World {
   int exited_count() const { int32_t n; check(cmpm_World_GetExitedCount(id_, &n)); return n; }
 
   // Bulk reads: x0, y0, x1, y1, ... (m); vx0, vy0, ... (m/s); pressures; ids. Same agent order.
-  std::vector<double> positions() const { return read2(&cmpm_World_GetPositions); }
-  std::vector<double> velocities() const { return read2(&cmpm_World_GetVelocities); }
+  std::vector<double> positions() const { return read_all<double>(&cmpm_World_GetPositions, 2); }
+  std::vector<double> velocities() const { return read_all<double>(&cmpm_World_GetVelocities, 2); }
   std::vector<double> pressures() const { return read_all<double>(&cmpm_World_GetPressures, 1); }
   std::vector<long long> agent_ids() const {
     const std::vector<cmpm_AgentId> ids = read_all<cmpm_AgentId>(&cmpm_World_GetAgentIds, 1);
@@ -157,9 +157,6 @@ class World {
     for (char c : s)
       if (c != ' ' && c != '\n' && c != '\t' && c != '\r') return c == '{';
     return false;
-  }
-  std::vector<double> read2(cmpm_Status (*fn)(cmpm_WorldId, double*, int32_t, int32_t*)) const {
-    return read_all<double>(fn, 2);
   }
   // A bulk read sized from the agent count. Another thread may step the world between the count
   // and the read (the C ABI serialises calls, not pairs of calls): on "buffer too small" it

@@ -145,8 +145,7 @@ void check_capacity(int32_t capacity, size_t needed, int32_t* out_written, const
   require(out_written, "out_written");
   *out_written = 0;
   if (capacity < 0) fail(CMPM_ERROR_INVALID_ARGUMENT, std::string("capacity must be >= 0, got ") + std::to_string(capacity));
-  if (needed > static_cast<size_t>(INT32_MAX))
-    fail(CMPM_ERROR_INTERNAL, std::string(what) + ": " + std::to_string(needed) + " values are more than an int32_t count can report");
+  as_count(needed, what);  // reportable through *out_written
   if (static_cast<size_t>(capacity) < needed)
     fail(CMPM_ERROR_BUFFER_TOO_SMALL, std::string(what) + ": buffer holds " + std::to_string(capacity) + " but " +
                                           std::to_string(needed) + " are needed");

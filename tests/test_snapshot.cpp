@@ -5,7 +5,6 @@
 #include <cstring>
 #include <filesystem>
 
-#include "engine/core/binary.hpp"
 #include "engine/sim/snapshot.hpp"
 #include "support.hpp"
 
@@ -100,7 +99,7 @@ TEST_CASE("snapshot: mutated state with a valid checksum is refused or restores,
   Simulation a(s, test::model_of(s), 1);
   a.run_steps(5);
   const std::string snap = save_snapshot(a);
-  const size_t header = 24, length = snap.size() - header - 8;
+  const size_t header = kSnapshotHeaderBytes, length = snap.size() - header - 8;
   // Skip the three JSON strings (scenario, name, model): their damage is JSON errors.
   size_t at = header;
   for (int k = 0; k < 3; ++k) {
@@ -113,8 +112,7 @@ TEST_CASE("snapshot: mutated state with a valid checksum is refused or restores,
     for (unsigned char x : {0x01, 0x80, 0xff}) {
       std::string bad = snap;
       bad[i] = static_cast<char>(bad[i] ^ x);
-      const uint64_t sum = fnv1a64(bad.data() + header, length);
-      std::memcpy(&bad[header + length], &sum, 8);
+      reseal_snapshot(bad);
       try {
         auto b = restore_snapshot(bad, "m.snap", 1);
         b->run_steps(2);

@@ -21,6 +21,7 @@ class BinaryWriter {
   void u64(uint64_t v) { put(&v, 8); }
   void i64(int64_t v) { put(&v, 8); }
   void f64(double v) { put(&v, 8); }
+  void raw(const char* p, size_t n) { bytes_.append(p, n); }
   void str(const std::string& s) {
     u64(s.size());
     bytes_.append(s);

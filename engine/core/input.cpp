@@ -30,20 +30,16 @@ std::string read_input_file(const std::string& path, const InputPolicy& policy) 
                 " (raise it with --max-input-mb or the caller's input limit)");
   std::ifstream in(path, std::ios::binary);
   if (!in) throw Error(path + ": cannot open file for reading");
-  // Read at most the limit (+1 to notice growth): a file that grows while read is still bounded.
+  // Read in chunks, checking the limit as it goes: a file that grows while read stays bounded.
   std::string data;
-  data.resize(static_cast<size_t>(size));
-  in.read(data.data(), static_cast<std::streamsize>(size));
-  if (in.bad()) throw Error(path + ": read error");
-  data.resize(static_cast<size_t>(in.gcount()));
-  if (data.size() == size) {
-    char extra[4096];
-    while (in.read(extra, sizeof extra) || in.gcount() > 0) {
-      if (data.size() + static_cast<size_t>(in.gcount()) > policy.max_bytes)
-        throw Error(path + ": grew above the input limit of " + mib(policy.max_bytes) + " while being read");
-      data.append(extra, static_cast<size_t>(in.gcount()));
-    }
+  data.reserve(static_cast<size_t>(size));
+  char chunk[65536];
+  while (in.read(chunk, sizeof chunk) || in.gcount() > 0) {
+    if (data.size() + static_cast<size_t>(in.gcount()) > policy.max_bytes)
+      throw Error(path + ": grew above the input limit of " + mib(policy.max_bytes) + " while being read");
+    data.append(chunk, static_cast<size_t>(in.gcount()));
   }
+  if (in.bad()) throw Error(path + ": read error");
   return data;
 }
 

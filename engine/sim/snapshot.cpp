@@ -14,7 +14,7 @@ namespace {
 
 constexpr char kMagic[8] = {'C', 'M', 'P', 'M', 'S', 'N', 'A', 'P'};
 constexpr uint32_t kEndianMark = 0x01020304;
-constexpr size_t kHeaderBytes = 8 + 4 + 4 + 8;  // magic, version, endian mark, payload length
+constexpr size_t kHeaderBytes = kSnapshotHeaderBytes;
 
 }  // namespace
 
@@ -243,17 +243,24 @@ struct SnapshotCodec {
 
 std::string save_snapshot(const Simulation& sim) {
   if (sim.failed()) throw Error("the world became unstable (non-finite state) at t = " + format_number(sim.time()) + " s: there is no state to save");
-  BinaryWriter payload;
-  SnapshotCodec::write(payload, sim);
-  BinaryWriter out;
-  std::string head(kMagic, 8);
-  out.u32(kSnapshotVersion);
-  out.u32(kEndianMark);
-  out.u64(payload.bytes().size());
-  std::string bytes = head + out.bytes() + payload.bytes();
-  BinaryWriter tail;
-  tail.u64(fnv1a64(payload.bytes().data(), payload.bytes().size()));
-  return bytes + tail.bytes();
+  BinaryWriter b;
+  b.raw(kMagic, sizeof kMagic);
+  b.u32(kSnapshotVersion);
+  b.u32(kEndianMark);
+  b.u64(0);  // payload length: set by reseal_snapshot
+  SnapshotCodec::write(b, sim);
+  b.u64(0);  // checksum: set by reseal_snapshot
+  std::string bytes = b.bytes();
+  reseal_snapshot(bytes);
+  return bytes;
+}
+
+void reseal_snapshot(std::string& bytes) {
+  if (bytes.size() < kHeaderBytes + 8) throw Error("reseal_snapshot: shorter than a header and a checksum");
+  const uint64_t length = bytes.size() - kHeaderBytes - 8;
+  std::memcpy(&bytes[kHeaderBytes - 8], &length, 8);
+  const uint64_t sum = fnv1a64(bytes.data() + kHeaderBytes, static_cast<size_t>(length));
+  std::memcpy(&bytes[kHeaderBytes + length], &sum, 8);
 }
 
 void save_snapshot_file(const Simulation& sim, const std::string& path) {

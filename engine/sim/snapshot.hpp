@@ -14,6 +14,13 @@
 namespace crowdmpm {
 
 constexpr uint32_t kSnapshotVersion = 1;
+// Magic, version, byte-order mark, payload length; the payload follows, then its checksum.
+constexpr size_t kSnapshotHeaderBytes = 8 + 4 + 4 + 8;
+
+// Sets a snapshot's payload length and checksum to match the bytes between header and checksum
+// (bytes must hold at least a header and a checksum). save_snapshot seals what it writes with
+// it; tools that edit a snapshot's state (the fuzz target, tests of the reader) reseal after.
+void reseal_snapshot(std::string& bytes);
 
 // The snapshot as bytes (header, payload, FNV-1a checksum of the payload).
 std::string save_snapshot(const Simulation& sim);

@@ -15,12 +15,10 @@ using namespace crowdmpm;
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   std::string bytes(reinterpret_cast<const char*>(data), size);
-  constexpr size_t kHeader = 24;
+  constexpr size_t kHeader = kSnapshotHeaderBytes;
   if (bytes.size() >= kHeader + 8 && bytes.compare(0, 8, "CMPMSNAP") == 0) {
+    reseal_snapshot(bytes);
     const uint64_t length = bytes.size() - kHeader - 8;
-    std::memcpy(&bytes[16], &length, 8);
-    const uint64_t sum = fnv1a64(bytes.data() + kHeader, length);
-    std::memcpy(&bytes[kHeader + length], &sum, 8);
     // The same bound on work as the scenario target: the scenario is the payload's first string.
     try {
       BinaryReader r(bytes.data() + kHeader, length, "fuzz");
