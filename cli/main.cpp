@@ -14,6 +14,8 @@
 #include "engine/io/render.hpp"
 #include "engine/learn/train.hpp"
 #include "engine/sim/snapshot.hpp"
+#include "engine/vision/synthetic.hpp"
+#include "engine/vision/video_job.hpp"
 
 using namespace crowdmpm;
 
@@ -40,6 +42,12 @@ const char* kUsage =
     "        --out MODEL.json [--model START] [options]\n"
     "                      learn the material from recordings by gradient descent through\n"
     "                      the simulator; writes a model JSON the simulator loads\n"
+    "  flow VIDEO --out DIR (--calibration CAL | --scale M_PER_PX) [options]\n"
+    "                      optical flow of a video, rectified to the ground and splatted\n"
+    "                      onto the simulator's grid: fields.npy and pictures\n"
+    "  render-video SCENARIO --out DIR [options]\n"
+    "                      film a simulated crowd through a tilted camera (synthetic video\n"
+    "                      with its calibration and true grid velocity)\n"
     "  help [COMMAND]      show help\n"
     "\n"
     "Run 'crowdmpm <command> --help' for the options of one command.\n"
@@ -157,6 +165,55 @@ const char* kTrainHelp =
     "                     the model does not depend on N (default 1)\n"
     "  --quiet            no progress lines\n";
 
+const char* kFlowHelp =
+    "usage: crowdmpm flow VIDEO --out DIR (--calibration CAL | --scale M_PER_PX) [options]\n"
+    "\n"
+    "Reads VIDEO (any container OpenCV decodes), computes dense optical flow between consecutive\n"
+    "frames, maps it to the ground plane (m/s) with the calibration, and splats it onto grid\n"
+    "nodes with the MPM quadratic B-spline weights (mean over moving pixels, each weighted by\n"
+    "the ground area it covers). Writes into DIR:\n"
+    "  fields.npy         float32 (frames, ny, nx, 3): vx, vy (m/s), mask; grid in fields.npy.json\n"
+    "  field_mean.png, field_middle.png   speed and arrows on the grid (metres)\n"
+    "  frame_flow.png     the middle frame with its flow arrows\n"
+    "  flow.json          video, calibration, grid, moving nodes, mean speed, processing speed\n"
+    "\n"
+    "options:\n"
+    "  --calibration CAL  crowdmpm-calibration JSON: four or more image <-> ground point pairs\n"
+    "                     (a homography), or a scale (docs/video.md)\n"
+    "  --scale S          metres per pixel, for a video without calibration (treated as a top\n"
+    "                     view: perspective is not removed; docs/video.md says what is lost)\n"
+    "  --scenario S       use the scenario's grid (domain and cell size); else a grid covering\n"
+    "                     the region of interest with --cell\n"
+    "  --cell M           grid spacing without a scenario (default 0.5 m)\n"
+    "  --method dis|farneback   optical flow (default dis)\n"
+    "  --dis-preset N     0 ultrafast, 1 fast, 2 medium (default 2)\n"
+    "  --smoothing A      temporal smoothing of the flow in [0, 1) (default 0: off)\n"
+    "  --first N          first frame (default 0)\n"
+    "  --frames N         frames to read (default: to the end)\n"
+    "  --fps F            frame rate, when the container's is missing or wrong\n"
+    "  --roi X,Y,X,Y,...  region of interest, a polygon in pixels (x right, y down)\n"
+    "  --sample-stride N  pixels between flow samples (default 2)\n"
+    "  --min-speed V      m/s below which a pixel counts as still (default 0.05)\n"
+    "  --quiet            no progress line\n";
+
+const char* kRenderHelp =
+    "usage: crowdmpm render-video SCENARIO --out DIR [options]\n"
+    "\n"
+    "Simulates SCENARIO and films it through a pinhole camera tilted over the ground: heads and\n"
+    "shoulders as textured blobs, a textured floor, sensor noise, blur and Motion JPEG\n"
+    "compression. Writes DIR/video.avi, DIR/calibration.json (the camera's image <-> ground\n"
+    "pairs) and DIR/truth.npy (+ .json: the true grid velocity between consecutive frames, on\n"
+    "the scenario's grid, as `flow` writes fields.npy).\n"
+    "\n"
+    "options:\n"
+    "  --duration S       seconds filmed (default 10)\n"
+    "  --settle S         seconds simulated before filming starts (default 3)\n"
+    "  --fps F            frames per second (default 10; a whole number of time steps)\n"
+    "  --tilt DEG         camera tilt from straight down (default 35)\n"
+    "  --size WxH         image size (default 640x480)\n"
+    "  --model MODEL      crowdmpm-model JSON instead of the scenario's\n"
+    "  --threads N        worker threads (default 1)\n";
+
 const char* kValidateHelp =
     "usage: crowdmpm validate SCENARIO [--model MODEL]\n"
     "\n"
@@ -180,6 +237,11 @@ struct Args {
   InputPolicy input;  // --max-input-mb, --allow-outside-paths
   std::string save_snapshot, resume;
   double snapshot_at = -1;
+  // flow, render-video
+  VideoSource video;
+  std::string calibration;
+  double settle = 3, tilt = 35, render_fps = 10;
+  int width = 640, height = 480;
 };
 
 [[noreturn]] void usage_error(const std::string& msg);
@@ -272,6 +334,43 @@ Args parse_args(int argc, char** argv, int first) {
           parse_double(s, value("--max-input-mb"), 1e-3, 1e9, "a size in MiB in [0.001, 1e9]") * 1024 * 1024);
     } else if (s == "--allow-outside-paths") {
       a.input.allow_outside_paths = true;
+    }
+    else if (s == "--calibration") a.video.calibration = value("--calibration");
+    else if (s == "--scale") a.video.scale = parse_double(s, value("--scale"), 1e-6, 100, "metres per pixel in (0, 100]");
+    else if (s == "--cell") a.video.cell = parse_double(s, value("--cell"), 0.05, 10, "a grid spacing in [0.05, 10] m");
+    else if (s == "--method") a.video.flow.method = flow_method(value("--method"));
+    else if (s == "--dis-preset") a.video.flow.dis_preset = static_cast<int>(parse_double(s, value("--dis-preset"), 0, 2, "0, 1 or 2"));
+    else if (s == "--smoothing") a.video.flow.smoothing = parse_double(s, value("--smoothing"), 0, 0.99, "in [0, 0.99]");
+    else if (s == "--first") a.video.video.first = static_cast<long>(parse_double(s, value("--first"), 0, 1e9, "a frame number >= 0"));
+    else if (s == "--frames") a.video.video.count = static_cast<long>(parse_double(s, value("--frames"), 2, 1e9, "a number of frames >= 2"));
+    else if (s == "--fps") {
+      const double f = parse_double(s, value("--fps"), 0.1, 999, "frames per second in [0.1, 999]");
+      a.video.video.fps = f;
+      a.render_fps = f;
+    } else if (s == "--roi") {
+      std::vector<double> v;
+      std::string t = value("--roi");
+      size_t b = 0;
+      while (b <= t.size()) {
+        size_t e = t.find(',', b);
+        if (e == std::string::npos) e = t.size();
+        v.push_back(parse_double("--roi", t.substr(b, e - b), -1e6, 1e6, "a list of pixel coordinates x,y,x,y,..."));
+        b = e + 1;
+      }
+      if (v.size() % 2 || v.size() < 6) usage_error("--roi needs at least three x,y pixel pairs, got " + std::to_string(v.size()) + " numbers");
+      for (size_t k = 0; k < v.size(); k += 2) a.video.video.roi.emplace_back(v[k], v[k + 1]);
+    } else if (s == "--sample-stride") a.video.field.sample_stride = static_cast<int>(parse_double(s, value(s.c_str()), 1, 64, "1..64 pixels"));
+    else if (s == "--min-speed") a.video.field.min_speed = parse_double(s, value(s.c_str()), 0, 10, "a speed in [0, 10] m/s");
+    else if (s == "--settle") a.settle = parse_double(s, value(s.c_str()), 0, 1e4, "seconds >= 0");
+    else if (s == "--tilt") a.tilt = parse_double(s, value(s.c_str()), 0, 79, "degrees in [0, 79]");
+    else if (s == "--size") {
+      const std::string t = value("--size");
+      int w = 0, h = 0;
+      char tail = 0;
+      if (std::sscanf(t.c_str(), "%dx%d%c", &w, &h, &tail) != 2 || w < 16 || h < 16 || w > 8192 || h > 8192)
+        usage_error("--size must be WIDTHxHEIGHT in pixels (16..8192), got '" + t + "'");
+      a.width = w;
+      a.height = h;
     }
     else if (s == "--windows") {
       std::string v = value("--windows");
@@ -486,6 +585,61 @@ int cmd_train(const Args& a) {
   return 0;
 }
 
+int cmd_flow(const Args& a) {
+  if (a.help) { std::fputs(kFlowHelp, stdout); return 0; }
+  if (a.positional.size() != 1) usage_error("flow needs exactly one VIDEO file");
+  if (a.out.empty()) usage_error("flow needs --out DIR");
+  VideoSource src = a.video;
+  src.path = a.positional[0];
+  src.video.input = a.input;
+  std::optional<ScenarioDef> sc;
+  if (!a.scenario.empty()) sc = ScenarioDef::load(a.scenario, a.input);
+  const bool tty = isatty(fileno(stderr)) && !a.quiet;
+  FlowProgress progress;
+  if (tty)
+    progress = [](long done, long total) {
+      g_progress_line = true;
+      std::fprintf(stderr, "\rflow: frame %ld of %ld ", done, total);
+      std::fflush(stderr);
+    };
+  const json j = run_flow_job(src, sc ? &*sc : nullptr, a.out, progress);
+  if (tty) std::fputc('\n', stderr);
+  std::printf("%s: %zu fields of %d x %d nodes (%s, %s) from %d x %d frames at %.3g fps; %.0f moving nodes per frame, "
+              "mean speed %.3f m/s; %.1f frames/s processed; outputs in %s\n",
+              src.path.c_str(), j["fields"].get<size_t>(), j["grid"]["nx"].get<int>(), j["grid"]["ny"].get<int>(),
+              j["method"].get<std::string>().c_str(), j["calibrated"].get<bool>() ? "homography" : "scale",
+              j["width"].get<int>(), j["height"].get<int>(), j["fps"].get<double>(), j["moving_nodes_per_frame"].get<double>(),
+              j["mean_speed"].get<double>(), j["frames_per_second_processed"].get<double>(), a.out.c_str());
+  return 0;
+}
+
+int cmd_render_video(const Args& a) {
+  if (a.help) { std::fputs(kRenderHelp, stdout); return 0; }
+  if (a.positional.size() != 1) usage_error("render-video needs exactly one SCENARIO file");
+  if (a.out.empty()) usage_error("render-video needs --out DIR");
+  ScenarioDef sd = ScenarioDef::load(a.positional[0], a.input);
+  Model m = !a.model.empty() ? Model::load(a.model, a.input) : sd.model_or_default();
+  Simulation sim(sd, m, a.threads);
+  for (double t = 0; t + 0.5 * sd.dt < a.settle; t += sd.dt) sim.step();
+  std::error_code ec;
+  std::filesystem::create_directories(a.out, ec);
+  if (ec) throw Error(a.out + ": cannot create folder (" + ec.message() + ")");
+  RenderOptions ro;
+  ro.camera.tilt_deg = a.tilt;
+  ro.camera.width = a.width;
+  ro.camera.height = a.height;
+  ro.fps = a.render_fps;
+  ro.duration = a.duration > 0 ? a.duration : 10;
+  const RenderResult r = render_synthetic_video(sim, ro, a.out + "/video.avi");
+  const Vec2 lo = sd.geo.lo, hi = sd.geo.hi;
+  save_json_file(r.calibration.to_json({lo, Vec2(hi.x(), lo.y()), hi, Vec2(lo.x(), hi.y())}), a.out + "/calibration.json");
+  write_fields_npy(a.out + "/truth.npy", r.truth, ro.fps, 0);
+  std::printf("%s: %ld frames of %d x %d at %.3g fps, tilt %.0f deg; %zu people, mean density %.2f /m2 where they are; "
+              "outputs in %s (video.avi, calibration.json, truth.npy)\n",
+              a.positional[0].c_str(), r.frames, a.width, a.height, ro.fps, a.tilt, sim.world().size(), r.mean_density, a.out.c_str());
+  return 0;
+}
+
 int cmd_validate(const Args& a) {
   if (a.help) { std::fputs(kValidateHelp, stdout); return 0; }
   if (a.positional.size() != 1) usage_error("validate needs exactly one SCENARIO file");
@@ -514,6 +668,8 @@ int main(int argc, char** argv) {
                  : sub == "validate" ? kValidateHelp
                  : sub == "predict"  ? kPredictHelp
                  : sub == "train"    ? kTrainHelp
+                 : sub == "flow"     ? kFlowHelp
+                 : sub == "render-video" ? kRenderHelp
                                      : kUsage,
                  stdout);
       return 0;
@@ -523,6 +679,8 @@ int main(int argc, char** argv) {
     if (cmd == "validate") return cmd_validate(a);
     if (cmd == "predict") return cmd_predict(a);
     if (cmd == "train") return cmd_train(a);
+    if (cmd == "flow") return cmd_flow(a);
+    if (cmd == "render-video") return cmd_render_video(a);
     usage_error("unknown command '" + cmd + "'");
   } catch (const Error& e) {
     std::fprintf(stderr, "%scrowdmpm: error: %s\n", g_progress_line ? "\n" : "", e.what());

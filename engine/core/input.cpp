@@ -16,7 +16,7 @@ static std::string mib(uint64_t bytes) {
   return buf;
 }
 
-std::string read_input_file(const std::string& path, const InputPolicy& policy) {
+uint64_t check_input_file(const std::string& path, const InputPolicy& policy) {
   std::error_code ec;
   const fs::file_status st = fs::status(path, ec);  // follows symbolic links
   if (ec || st.type() == fs::file_type::not_found) throw Error(path + ": cannot open file for reading (no such file)");
@@ -28,6 +28,11 @@ std::string read_input_file(const std::string& path, const InputPolicy& policy) 
   if (size > policy.max_bytes)
     throw Error(path + ": is " + mib(size) + ", above the input limit of " + mib(policy.max_bytes) +
                 " (raise it with --max-input-mb or the caller's input limit)");
+  return size;
+}
+
+std::string read_input_file(const std::string& path, const InputPolicy& policy) {
+  const uint64_t size = check_input_file(path, policy);
   std::ifstream in(path, std::ios::binary);
   if (!in) throw Error(path + ": cannot open file for reading");
   // Read in chunks, checking the limit as it goes: a file that grows while read stays bounded.

@@ -19,6 +19,10 @@ struct InputPolicy {
   bool allow_outside_paths = false;
 };
 
+// The checks read_input_file makes before reading, for files another library opens (videos):
+// returns the size in bytes, or throws Error as read_input_file does.
+uint64_t check_input_file(const std::string& path, const InputPolicy& policy = {});
+
 // The whole file as bytes. Throws Error "<path>: <reason>" for a missing or unreadable file, a
 // folder or special file, or a file above policy.max_bytes (checked before and while reading).
 std::string read_input_file(const std::string& path, const InputPolicy& policy = {});

@@ -139,6 +139,50 @@ void write_field_png(const std::string& path, const Geometry& geo, const View& v
   write_png(path, img);
 }
 
+void write_velocity_png(const std::string& path, const Geometry& geo, const View& v, const GridVelocityField& f,
+                        double vmax, const std::string& text, double arrow_seconds) {
+  if (f.velocity.size() != static_cast<size_t>(f.nx) * f.ny || f.mask.size() != f.velocity.size())
+    throw Error(path + ": velocity field arrays do not match its " + std::to_string(f.nx) + " x " + std::to_string(f.ny) + " grid");
+  if (!(vmax > 0)) {
+    std::vector<double> speeds;
+    for (size_t i = 0; i < f.velocity.size(); ++i)
+      if (f.mask[i] > 0 && f.velocity[i].allFinite()) speeds.push_back(f.velocity[i].norm());
+    if (!speeds.empty()) {
+      const size_t k = std::min(speeds.size() - 1, static_cast<size_t>(0.95 * static_cast<double>(speeds.size())));
+      std::nth_element(speeds.begin(), speeds.begin() + static_cast<long>(k), speeds.end());
+      vmax = speeds[k];
+    }
+    if (!(vmax > 0)) vmax = 1;
+  }
+  cv::Mat img = canvas(v);
+  const double half = 0.5 * f.dx;
+  for (int j = 0; j < f.ny; ++j)
+    for (int i = 0; i < f.nx; ++i) {
+      const size_t n = static_cast<size_t>(j) * f.nx + i;
+      const Vec2 c = f.origin + f.dx * Vec2(i, j);
+      if (c.x() + half < v.lo.x() || c.x() - half > v.hi.x() || c.y() + half < v.lo.y() || c.y() - half > v.hi.y()) continue;
+      const bool kept = f.mask[n] > 0 && f.velocity[n].allFinite();
+      const cv::Vec3b col = kept ? colour(f.velocity[n].norm() / vmax) : cv::Vec3b(225, 225, 225);
+      // Clipped to the view, so that border cells do not paint over the title or the colour bar.
+      const Vec2 a(std::max(c.x() - half, v.lo.x()), std::min(c.y() + half, v.hi.y()));
+      const Vec2 b(std::min(c.x() + half, v.hi.x()), std::max(c.y() - half, v.lo.y()));
+      cv::rectangle(img, to_px(v, a), to_px(v, b), cv::Scalar(col[0], col[1], col[2]), cv::FILLED);
+    }
+  for (size_t n = 0; n < f.velocity.size(); ++n) {
+    if (!(f.mask[n] > 0 && f.velocity[n].allFinite())) continue;
+    const Vec2 c = f.origin + f.dx * Vec2(static_cast<double>(n % f.nx), static_cast<double>(n / f.nx));
+    if (c.x() < v.lo.x() || c.x() > v.hi.x() || c.y() < v.lo.y() || c.y() > v.hi.y()) continue;
+    // At most one cell long, so that arrows of neighbouring nodes do not cross.
+    Vec2 d = f.velocity[n] * arrow_seconds;
+    if (d.norm() > f.dx) d *= f.dx / d.norm();
+    cv::arrowedLine(img, to_px(v, c), to_px(v, c + d), cv::Scalar(255, 200, 0), 1, cv::LINE_AA, 0, 0.3);
+  }
+  draw_geometry(img, v, geo);
+  draw_colour_bar(img, v, 0, vmax, "m/s");
+  title(img, text);
+  write_png(path, img);
+}
+
 void write_paths_png(const std::string& path, const Geometry& geo, const View& v, const std::vector<PathSet>& sets,
                      const std::string& text) {
   // The legend sits right of the venue: as wide as its longest label.

@@ -5,6 +5,7 @@
 #include <vector>
 
 #include "engine/analysis/fields.hpp"
+#include "engine/analysis/grid_velocity.hpp"
 #include "engine/geometry/geometry.hpp"
 #include "engine/sim/world.hpp"
 
@@ -24,6 +25,12 @@ struct View {
 void write_field_png(const std::string& path, const Geometry& geo, const View& view, const FieldFrame& f,
                      const std::vector<double>& values, double vmin, double vmax, const std::string& title,
                      const std::string& unit);
+
+// A grid velocity field (video flow, simulation, their difference): speed as a colour map over
+// the nodes its mask keeps (grey elsewhere), an arrow per kept node (length: distance walked in
+// `arrow_seconds`), geometry on top. vmax <= 0: the field's own 95th-percentile speed.
+void write_velocity_png(const std::string& path, const Geometry& geo, const View& view, const GridVelocityField& f,
+                        double vmax, const std::string& title, double arrow_seconds = 1);
 
 // Paths (polylines of positions) over the venue, each set in its colour (B, G, R), with a legend.
 struct PathSet {
