@@ -65,7 +65,7 @@ void drive_adjoint(const StepInputs& in, const Behaviour& beh, const World& w, s
   const Vec2 x = w.x[p], v = w.v[p];
   const TermPoint pt{x, v, heading_prev, w.group[p], in.time};
   const bool driven = beh.kind != Behaviour::Kind::None;
-  const Vec2 e = desired_direction(in, beh, x);
+  const Vec2 e = desired_direction(in, beh, x, heading_prev);
   // The speed factors, each term's own and the product of the others'.
   f_own.assign(in.terms.size(), 1.0);
   double f = 1;
@@ -95,10 +95,11 @@ void drive_adjoint(const StepInputs& in, const Behaviour& beh, const World& w, s
       Vec2 up = x, dn = x;
       up[c] += h;
       dn[c] -= h;
-      x_bar[c] += e_bar.dot(desired_direction(in, beh, up) - desired_direction(in, beh, dn)) / (2 * h);
+      x_bar[c] += e_bar.dot(desired_direction(in, beh, up, heading_prev) - desired_direction(in, beh, dn, heading_prev)) / (2 * h);
     }
   }
-  if (h_bar.squaredNorm() > 0 && e.squaredNorm() == 0 && v.squaredNorm() > 1e-8) {
+  // (A heading kept from entry is a constant of the window: nothing to propagate.)
+  if (beh.kind != Behaviour::Kind::Heading && h_bar.squaredNorm() > 0 && e.squaredNorm() == 0 && v.squaredNorm() > 1e-8) {
     // Heading = v / |v| when there is no desired direction.
     const Vec2 u = v.normalized();
     v_bar += (h_bar - h_bar.dot(u) * u) / v.norm();

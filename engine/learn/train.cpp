@@ -188,20 +188,23 @@ double window_loss(const ScenarioDef& windowed, const TrainWindow& tw, const Mod
   if (n == 0) return nan;
   // Targets in dense order (agents were added in observed order, none removed).
   TrajectoryTarget target;
-  for (size_t k = 0; k < tw.seen.size(); ++k) {
+  std::vector<size_t> frame_of;  // the window frame of each target step
+  for (size_t k = 0; k < tw.frames(); ++k) {
     const int step = static_cast<int>(std::lround(static_cast<double>(k + 1) / tw.framerate / windowed.dt));
     if (step < 1 || (!target.steps.empty() && step <= target.steps.back())) continue;
     std::vector<Vec2> row(n, Vec2(nan, nan));
-    for (size_t i = 0; i < ws.ids.size(); ++i)
-      if (ws.ids[i]) row[static_cast<size_t>(sim.world().index_of(ws.ids[i]))] = tw.seen[k][i];
+    if (tw.fields.empty())
+      for (size_t i = 0; i < ws.ids.size(); ++i)
+        if (ws.ids[i]) row[static_cast<size_t>(sim.world().index_of(ws.ids[i]))] = tw.seen[k][i];
     target.steps.push_back(step);
     target.targets.push_back(std::move(row));
+    frame_of.push_back(k);
   }
-  if (target.samples() == 0) return nan;
+  if (target.steps.empty() || (tw.fields.empty() && target.samples() == 0)) return nan;
   const int steps = target.steps.back();
   // Per target step: the loss term at the state after it, and its gradient when asked for.
   std::function<double(size_t, const World&, std::vector<Vec2>*, std::vector<Vec2>*)> term;
-  if (o.loss == TrainOptions::Loss::Trajectory) {
+  if (tw.fields.empty() && o.loss == TrainOptions::Loss::Trajectory) {
     const double weight = 1.0 / static_cast<double>(target.samples());
     term = [&, weight](size_t s, const World& w, std::vector<Vec2>* dx, std::vector<Vec2>*) {
       double l = 0;
@@ -211,12 +214,18 @@ double window_loss(const ScenarioDef& windowed, const TrainWindow& tw, const Mod
   } else {
     // The recorded velocity field at each target step: positions and one-frame velocities of
     // the people seen in both frames, transferred to the simulation's grid.
+    // Or the observed fields themselves (video).
     std::vector<GridVelocityField> fields;
     size_t used = 0;
     std::vector<Vec2> start_x(n, Vec2(nan, nan));  // dense order
     for (size_t i = 0; i < ws.ids.size(); ++i)
       if (ws.ids[i]) start_x[static_cast<size_t>(sim.world().index_of(ws.ids[i]))] = tw.start.x[i];
     for (size_t s = 0; s < target.steps.size(); ++s) {
+      if (!tw.fields.empty()) {
+        fields.push_back(tw.fields[frame_of[s]]);
+        used += fields.back().mask_sum() > 0 ? 1 : 0;
+        continue;
+      }
       const auto& now = target.targets[s];
       std::vector<Vec2> xs, vs;
       for (size_t p = 0; p < n; ++p) {
@@ -297,7 +306,7 @@ void check_windows(size_t scenarios, const std::vector<TrainWindow>& train, cons
         throw Error(where + ": start state has " + std::to_string(n) + " ids but " + std::to_string(w.start.x.size()) +
                     " positions, " + std::to_string(w.start.v.size()) + " velocities and " + std::to_string(w.start.speed.size()) + " speeds");
       if (!(w.framerate > 0) || !std::isfinite(w.framerate)) throw Error(where + ": frame rate must be > 0, got " + format_number(w.framerate));
-      if (w.seen.empty()) throw Error(where + " has no recorded frames");
+      if (w.frames() == 0) throw Error(where + " has no recorded frames");
       for (size_t k = 0; k < w.seen.size(); ++k)
         if (w.seen[k].size() != n)
           throw Error(where + ": frame " + std::to_string(k + 1) + " has " + std::to_string(w.seen[k].size()) + " positions for " + std::to_string(n) + " people");
@@ -649,6 +658,34 @@ std::string resolve_path(const std::string& base, const std::string& p) {
 }
 }  // namespace
 
+void parse_train_options(const JsonReader& options, TrainOptions& o) {
+  const JsonReader* op = &options;
+  op->require_object();
+  op->allow_only({"window", "stride", "iterations", "batch", "learning_rate", "clip", "validation", "eval_every",
+                  "patience", "seed", "threads", "params", "learn_network", "loss", "desired_speed"});
+  o.window = op->in_range("window", 1e-3, 1e4, o.window);
+  o.stride = op->in_range("stride", 1e-3, 1e4, o.stride);
+  o.iterations = op->integer("iterations", 1, 1000000, o.iterations);
+  o.batch = op->integer("batch", 1, 10000, o.batch);
+  o.learning_rate = op->in_range("learning_rate", 1e-9, 10, o.learning_rate);
+  o.clip_norm = op->in_range("clip", 0, 1e12, o.clip_norm);
+  o.validation_fraction = op->in_range("validation", 0.01, 0.9, o.validation_fraction);
+  o.eval_every = op->integer("eval_every", 1, 1000000, o.eval_every);
+  o.patience = op->integer("patience", 1, 1000000, o.patience);
+  o.seed = static_cast<uint64_t>(op->integer("seed", 0, 2000000000, static_cast<long>(o.seed)));
+  o.threads = op->integer("threads", 1, 256, o.threads);
+  o.learn_network = op->boolean("learn_network", o.learn_network);
+  o.loss = op->one_of("loss", {"trajectory", "grid_velocity"}, "trajectory") == "trajectory" ? TrainOptions::Loss::Trajectory
+                                                                                              : TrainOptions::Loss::GridVelocity;
+  const std::string speed_mode = op->one_of("desired_speed", {"observed", "scenario", "free"}, "observed");
+  o.desired_speed = speed_mode == "observed" ? DesiredSpeed::Observed : speed_mode == "scenario" ? DesiredSpeed::Scenario : DesiredSpeed::Free;
+  if (auto ps = op->get("params")) {
+    // [] learns no scalar parameter: only the network and the force terms marked "learn".
+    for (size_t i = 0; i < ps->size(); ++i) o.params.push_back(ps->item(i).as_string());
+    o.learn_scalars = !o.params.empty();
+  }
+}
+
 TrainJob parse_train_job(const json& request, const std::string& base_dir) {
   JsonReader r(request, "");
   r.require_object();
@@ -677,32 +714,7 @@ TrainJob parse_train_job(const json& request, const std::string& base_dir) {
     job.start = Model::default_of(r.one_of("material", {"crowd", "fluid", "social_force"}, std::nullopt));
   else job.start = job.data[0].scenario.model_or_default();
   TrainOptions& o = job.options;
-  if (auto op = r.get("options")) {
-    op->require_object();
-    op->allow_only({"window", "stride", "iterations", "batch", "learning_rate", "clip", "validation", "eval_every",
-                    "patience", "seed", "threads", "params", "learn_network", "loss", "desired_speed"});
-    o.window = op->in_range("window", 1e-3, 1e4, o.window);
-    o.stride = op->in_range("stride", 1e-3, 1e4, o.stride);
-    o.iterations = op->integer("iterations", 1, 1000000, o.iterations);
-    o.batch = op->integer("batch", 1, 10000, o.batch);
-    o.learning_rate = op->in_range("learning_rate", 1e-9, 10, o.learning_rate);
-    o.clip_norm = op->in_range("clip", 0, 1e12, o.clip_norm);
-    o.validation_fraction = op->in_range("validation", 0.01, 0.9, o.validation_fraction);
-    o.eval_every = op->integer("eval_every", 1, 1000000, o.eval_every);
-    o.patience = op->integer("patience", 1, 1000000, o.patience);
-    o.seed = static_cast<uint64_t>(op->integer("seed", 0, 2000000000, static_cast<long>(o.seed)));
-    o.threads = op->integer("threads", 1, 256, o.threads);
-    o.learn_network = op->boolean("learn_network", o.learn_network);
-    o.loss = op->one_of("loss", {"trajectory", "grid_velocity"}, "trajectory") == "trajectory" ? TrainOptions::Loss::Trajectory
-                                                                                                : TrainOptions::Loss::GridVelocity;
-    const std::string speed_mode = op->one_of("desired_speed", {"observed", "scenario", "free"}, "observed");
-    o.desired_speed = speed_mode == "observed" ? DesiredSpeed::Observed : speed_mode == "scenario" ? DesiredSpeed::Scenario : DesiredSpeed::Free;
-    if (auto ps = op->get("params")) {
-      // [] learns no scalar parameter: only the network and the force terms marked "learn".
-      for (size_t i = 0; i < ps->size(); ++i) o.params.push_back(ps->item(i).as_string());
-      o.learn_scalars = !o.params.empty();
-    }
-  }
+  if (auto op = r.get("options")) parse_train_options(*op, o);
   std::vector<ScenarioDef> venues;
   for (const auto& d : job.data) venues.push_back(d.scenario);
   const ParamMap check(Fitted::of(job.start, venues), o.params, o.learn_network, o.learn_scalars);  // unknown or unlearnable names fail here

@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "engine/analysis/grid_velocity.hpp"
 #include "engine/learn/differentiable.hpp"
 #include "engine/observe/observe.hpp"
 
@@ -106,6 +107,11 @@ struct TrainWindow {
   double framerate = 0; // of `seen`
   // seen[k][i]: position of start.ids[i] at frame k + 1 after the start (NaN: not in the recording).
   std::vector<std::vector<Vec2>> seen;
+  // Or, for a crowd seen only as a velocity field (video): fields[k] is the observed grid
+  // velocity at frame k + 1 after the start, on the venue's grid; the loss is then the grid
+  // velocity loss against them whatever TrainOptions::loss says.
+  std::vector<GridVelocityField> fields;
+  size_t frames() const { return fields.empty() ? seen.size() : fields.size(); }
 };
 
 // Training and validation windows of the datasets (validation: the last share of each
@@ -167,6 +173,8 @@ struct TrainJob {
   InputPolicy input;  // limits of the files the job reads ("input" of the request)
 };
 TrainJob parse_train_job(const json& request, const std::string& base_dir = "");
+// The "options" object of a training request into o (defaults kept for keys not given).
+void parse_train_options(const JsonReader& options, TrainOptions& o);
 // The best model of a run, named "learned <kind>" and described: what it was learned from and
 // its validation loss before and after.
 Model describe_learned(const TrainJob& job, const TrainResult& r);

@@ -9,7 +9,9 @@
 namespace crowdmpm {
 
 struct Behaviour {
-  enum class Kind { None, Goal, Orbit, Attract };
+  // Heading: each person walks on in the direction they were moving when placed (their
+  // heading at entry), for crowds seen without goals (video).
+  enum class Kind { None, Goal, Orbit, Attract, Heading };
   Kind kind = Kind::None;
   // As the scenario gives it.
   std::string target;          // Goal: exit or goal id, or "nearest_exit"; Orbit: structure to circle (or empty)

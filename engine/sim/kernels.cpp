@@ -93,9 +93,10 @@ Mat2 kirchhoff_stress(const Model& m, const Mat2& F, double J) {
 // ---------------------------------------------------------------------------------------------
 // 1. Drive: a_p = (s v0 f e_p - v_p) / tau + sum of the force terms (terms.hpp).
 
-Vec2 desired_direction(const StepInputs& in, const Behaviour& b, const Vec2& x) {
+Vec2 desired_direction(const StepInputs& in, const Behaviour& b, const Vec2& x, const Vec2& heading) {
   switch (b.kind) {
     case Behaviour::Kind::None: return Vec2::Zero();
+    case Behaviour::Kind::Heading: return heading;
     case Behaviour::Kind::Goal:
       if (b.goal && b.goal->contains(x)) return Vec2::Zero();
       return in.navs[b.nav].direction(x);
@@ -130,12 +131,13 @@ void drive_point(const StepInputs& in, const Behaviour& beh, int group, const Ve
   Vec2 a = Vec2::Zero();
   double factor = 1;
   apply_terms(in.terms, TermPoint{x, v, prev_heading, group, in.time}, a, factor);
-  Vec2 dir = desired_direction(in, beh, x);
+  Vec2 dir = desired_direction(in, beh, x, prev_heading);
   const double u = P.v0_scale * v0 * factor;  // the free speed
   if (beh.kind != Behaviour::Kind::None) a = (u * dir - v) / P.tau + a;
   accel = a;
   free_speed = beh.kind != Behaviour::Kind::None && dir.squaredNorm() > 0 ? u : 0;
-  if (dir.squaredNorm() > 0) heading = dir;
+  if (beh.kind == Behaviour::Kind::Heading) heading = prev_heading;  // kept from entry (zero: no drive)
+  else if (dir.squaredNorm() > 0) heading = dir;
   else if (v.squaredNorm() > 1e-8) heading = v.normalized();
   else heading = prev_heading;
 }

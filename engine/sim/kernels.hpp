@@ -84,7 +84,7 @@ double material_pressure(const MaterialParams& p, double J);
 Mat2 kirchhoff_stress(const Model& m, const Mat2& F, double J);
 
 // Unit desired direction of a behaviour at x (zero where the agent stands still).
-Vec2 desired_direction(const StepInputs& in, const Behaviour& b, const Vec2& x);
+Vec2 desired_direction(const StepInputs& in, const Behaviour& b, const Vec2& x, const Vec2& heading);
 // One agent's drive, a_p = (s v0 f e - v) / tau + sum of the terms' accelerations, with f the
 // product of the terms' speed factors, and its heading; kernel_drive applies it to every agent.
 void drive_point(const StepInputs& in, const Behaviour& beh, int group, const Vec2& x, const Vec2& v, double v0,

@@ -14,10 +14,13 @@ static Behaviour parse_behaviour(const JsonReader& r) {
   r.require_object();
   Behaviour b;
   b.path = r.path();
-  std::string type = r.one_of("type", {"goal", "orbit", "attract", "none"}, std::nullopt);
+  std::string type = r.one_of("type", {"goal", "orbit", "attract", "heading", "none"}, std::nullopt);
   if (type == "none") {
     r.allow_only({"type"});
     b.kind = Behaviour::Kind::None;
+  } else if (type == "heading") {
+    r.allow_only({"type"});
+    b.kind = Behaviour::Kind::Heading;
   } else if (type == "goal") {
     r.allow_only({"type", "target"});
     b.kind = Behaviour::Kind::Goal;

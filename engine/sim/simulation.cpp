@@ -188,6 +188,13 @@ AgentDef Simulation::agent_template(const GroupDef& g, int gi) const {
   return d;
 }
 
+AgentDef Simulation::with_entry_heading(AgentDef d) const {
+  // The heading behaviour walks on the way the person moved at entry (no drive if standing).
+  if (behaviours_[static_cast<size_t>(d.behaviour)].kind == Behaviour::Kind::Heading)
+    d.heading = d.velocity.norm() > 1e-9 ? Vec2(d.velocity.normalized()) : Vec2::Zero();
+  return d;
+}
+
 EntityId Simulation::add_agent(const AgentDef& def) {
   if (def.behaviour < 0 || def.behaviour >= static_cast<int>(behaviours_.size()))
     throw Error("agent behaviour index " + std::to_string(def.behaviour) + " out of range");
@@ -207,7 +214,7 @@ EntityId Simulation::add_agent(const AgentDef& def) {
   max_comfort_ = std::max(max_comfort_, def.comfort_distance);
   max_v0_ = std::max(max_v0_, def.desired_speed);
   if (neighbour_reach() > neighbours_.range) init_neighbours(neighbour_reach());
-  const EntityId e = world_.add(def);
+  const EntityId e = world_.add(with_entry_heading(def));
   // People added one by one before a step (a recorded state, a replay's arrivals) are one
   // batch: each add recomputes the whole batch, so J does not depend on the order of adding.
   if (model_.density_referenced()) reference_volumes(world_, batch_start_, model_.params.rest_density);
@@ -302,7 +309,7 @@ void Simulation::place_group(size_t gi) {
       double ang = 2 * M_PI * rng_.uniform(), rad = jitter * std::sqrt(rng_.uniform());
       Vec2 q = pts[i] + rad * Vec2(std::cos(ang), std::sin(ang));
       if (free_at(q) && !overlaps(q, 2 * r)) d.position = q;
-      world_.add(d);
+      world_.add(with_entry_heading(d));
       ++spawned_;
       occupied[key(d.position)].push_back(d.position);
     }
@@ -357,7 +364,7 @@ void Simulation::spawn_sources() {
         AgentDef d = tmpl;
         d.desired_speed = draw_speed(g);
         d.position = p;
-        world_.add(d);
+        world_.add(with_entry_heading(d));
         placed = true;
       }
       if (!placed) break;  // region full: try again next step

@@ -126,6 +126,7 @@ class Simulation {
   Model model_;
   ThreadPool pool_;
   World world_;
+  AgentDef with_entry_heading(AgentDef d) const;
   Grid grid_;
   NeighbourGrid neighbours_;
   std::vector<NavField> navs_;

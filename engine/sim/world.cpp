@@ -30,7 +30,7 @@ EntityId World::add(const AgentDef& d) {
   behaviour.push_back(d.behaviour);
   group.push_back(d.group);
   accel.push_back(Vec2::Zero());
-  heading.push_back(Vec2(1, 0));
+  heading.push_back(d.heading);
   free_speed.push_back(0);
   pair_force.push_back(Vec2::Zero());
   pair_virial.push_back(0);

@@ -19,6 +19,7 @@ struct AgentDef {
   double desired_speed = 1.3;    // m/s
   int behaviour = 0;             // index into the simulation's behaviour table
   int group = 0;                 // index into the scenario's groups and sources
+  Vec2 heading = Vec2(1, 0);     // unit direction at entry; Simulation::add_agent sets it from the velocity for the heading behaviour
 };
 
 class World {

@@ -301,6 +301,8 @@ VideoFlow extract_video_flow(const std::string& path, const VideoOptions& vo, co
   cal.check_region(region, path + ": region of interest");
   FieldBuilder builder(shape, cal, out.info.width, out.info.height, vo.roi, field);
   FlowEstimator flow(fo);
+  out.covered.resize(builder.coverage().size());
+  for (size_t i = 0; i < out.covered.size(); ++i) out.covered[i] = builder.coverage()[i] >= field.min_coverage;
   const long total = vo.count > 0 ? vo.count : std::max(0L, out.info.frames - vo.first);
   cv::Mat grey, f;
   long done = 0;

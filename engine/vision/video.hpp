@@ -135,6 +135,7 @@ struct VideoFlow {
   long first = 0;
   std::vector<Vec2> roi;
   std::vector<GridVelocityField> fields;
+  std::vector<char> covered;  // nodes the image covers (FieldOptions::min_coverage)
   double seconds_per_field() const { return 1 / info.fps; }
 };
 

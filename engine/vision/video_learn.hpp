@@ -1,0 +1,57 @@
+#pragma once
+// Learning the crowd material from a video's velocity fields, and predicting them (the source
+// document's protocol): particles are sampled where the crowd moves at a given density with
+// velocities from the field; clips of the first part of the video are fitted with the grid
+// velocity loss (train.hpp, TrainWindow::fields); the last part is held out and predicted from
+// the state at its start, scored by Err_vel (mean squared grid velocity error, m^2/s^2, over the
+// observed nodes away from the view's border) at evenly spread horizons, against persistence of
+// the last observed field and constant velocity of the particles.
+#include <string>
+#include <vector>
+
+#include "engine/learn/train.hpp"
+#include "engine/predict/predict.hpp"
+
+namespace crowdmpm {
+
+struct VideoLearnOptions {
+  double density = 6;       // persons/m^2 sampled where the field moves
+  double clip = 2.4;        // s per training clip
+  double stride = 0.6;      // s between clip starts
+  double train_share = 0.6; // the first share of the fields trains (its last clips validate); the rest is held out
+  int start_frames = 5;     // a start state's velocities: the mean of this many fields up to the start
+  int horizons = 7;         // prediction horizons spread evenly over the held-out part
+  double min_mass = 0.5;    // persons on a node's stencil for the prediction to have a velocity there
+  void check() const;
+};
+
+// Particles on a hexagonal lattice at `density` over the nodes the field keeps (each lattice
+// point belongs to its nearest node), velocities interpolated from the field with the B-spline
+// weights of the kept nodes. ids 1..n; speed = free speed = |v|.
+ObservedState sample_particles(const GridVelocityField& field, double density);
+
+// Training and validation windows from fields[0, end) (validation: the last share of the clips).
+void make_video_windows(const std::vector<GridVelocityField>& fields, double fps, size_t end, const VideoLearnOptions& vo,
+                        double validation_fraction, std::vector<TrainWindow>& train, std::vector<TrainWindow>& validation);
+
+struct VideoHorizon {
+  double seconds = 0;  // after the start of the held-out part
+  long frame = 0;      // field index
+  double err_vel = 0;  // m^2/s^2
+  long nodes = 0;
+};
+struct VideoPrediction {
+  std::string method;
+  std::vector<VideoHorizon> horizons;
+};
+
+// Predicts fields[start + h] for the horizons from the state at `start` (the first field of the
+// held-out part): persistence, constant velocity, and each model rolled forward in the scenario.
+// `covered`: nodes the camera sees (a node next to an unseen one is border and not scored).
+std::vector<VideoPrediction> predict_video(const ScenarioDef& scenario, const std::vector<Model>& models,
+                                           const std::vector<GridVelocityField>& fields, const std::vector<char>& covered,
+                                           double fps, size_t start, const VideoLearnOptions& vo, int threads);
+
+json video_prediction_json(const std::vector<VideoPrediction>& p);
+
+}  // namespace crowdmpm
