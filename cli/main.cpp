@@ -16,6 +16,7 @@
 #include "engine/sim/snapshot.hpp"
 #include "engine/vision/synthetic.hpp"
 #include "engine/vision/video_job.hpp"
+#include "engine/vision/video_learn.hpp"
 
 using namespace crowdmpm;
 
@@ -40,6 +41,8 @@ const char* kUsage =
     "                      the untrained default model and every model given\n"
     "  train --scenario S --trajectories T [T...] [--scenario S2 --trajectories ...]\n"
     "        --out MODEL.json [--model START] [options]\n"
+    "  train --video V (--calibration CAL | --scale S) [--scenario S] --out MODEL.json\n"
+    "  predict --video V (--calibration CAL | --scale S) [--scenario S] [--model M]...\n"
     "                      learn the material from recordings by gradient descent through\n"
     "                      the simulator; writes a model JSON the simulator loads\n"
     "  flow VIDEO --out DIR (--calibration CAL | --scale M_PER_PX) [options]\n"
@@ -163,7 +166,18 @@ const char* kTrainHelp =
     "                     percentile of their walking speed along their track so far), times v0_scale\n"
     "  --threads N        windows simulated and differentiated in parallel, one per thread;\n"
     "                     the model does not depend on N (default 1)\n"
-    "  --quiet            no progress lines\n";
+    "  --quiet            no progress lines\n"
+    "\n"
+    "From video: crowdmpm train --video V (--calibration CAL | --scale S) [--scenario S] --out M\n"
+    "  The video's ground velocity fields (flow options as 'crowdmpm flow') are cut into clips\n"
+    "  of --clip-length seconds (default 2.4) every --stride seconds (default 0.6) over the first\n"
+    "  --train-share of the video (default 0.6; its last clips validate). Each clip starts from\n"
+    "  particles sampled where the field moves at --density persons/m2 (default 6) with the\n"
+    "  field's velocities, and is fitted with the grid velocity loss. Without --scenario the\n"
+    "  venue is the ground in view, without walls, and people walk on the way they moved.\n"
+    "  'crowdmpm predict --video ...' with the same options predicts the rest of the video from\n"
+    "  its first held-out field and prints Err_vel at --horizons (default 7) horizons for\n"
+    "  persistence, constant velocity, the untrained default and every --model.\n";
 
 const char* kFlowHelp =
     "usage: crowdmpm flow VIDEO --out DIR (--calibration CAL | --scale M_PER_PX) [options]\n"
@@ -241,6 +255,7 @@ struct Args {
   VideoSource video;
   std::string calibration;
   double settle = 3, tilt = 35, render_fps = 10;
+  VideoLearnOptions video_learn;
   int width = 640, height = 480;
 };
 
@@ -335,6 +350,11 @@ Args parse_args(int argc, char** argv, int first) {
     } else if (s == "--allow-outside-paths") {
       a.input.allow_outside_paths = true;
     }
+    else if (s == "--video") a.video.path = value("--video");
+    else if (s == "--density") a.video_learn.density = parse_double(s, value(s.c_str()), 0.01, 12, "persons/m2 in [0.01, 12]");
+    else if (s == "--clip-length") a.video_learn.clip = parse_double(s, value(s.c_str()), 0.01, 1e4, "seconds > 0");
+    else if (s == "--train-share") a.video_learn.train_share = parse_double(s, value(s.c_str()), 0.05, 0.95, "a share in [0.05, 0.95]");
+    else if (s == "--horizons") a.video_learn.horizons = static_cast<int>(parse_double(s, value(s.c_str()), 1, 100, "1..100"));
     else if (s == "--calibration") a.video.calibration = value("--calibration");
     else if (s == "--scale") a.video.scale = parse_double(s, value("--scale"), 1e-6, 100, "metres per pixel in (0, 100]");
     else if (s == "--cell") a.video.cell = parse_double(s, value("--cell"), 0.05, 10, "a grid spacing in [0.05, 10] m");
@@ -450,8 +470,11 @@ DesiredSpeed desired_speed_of(const Args& a) {
 }
 
 
+int cmd_predict_video(const Args& a);
+
 int cmd_predict(const Args& a) {
   if (a.help) { std::fputs(kPredictHelp, stdout); return 0; }
+  if (!a.video.path.empty()) return cmd_predict_video(a);
   if (a.scenario.empty() || a.trajectories.empty()) usage_error("predict needs --scenario and --trajectories");
   size_t n_scen = 0, n_traj = 0;  // in any order
   for (const auto& [scen, trajs] : a.datasets) {
@@ -521,9 +544,104 @@ int cmd_predict(const Args& a) {
   return 0;
 }
 
+// The venue, the fields and the split of a video (train --video, predict --video).
+struct VideoData {
+  ScenarioDef venue;
+  VideoFields fields;
+  size_t split = 0;  // fields[0, split) train; the rest is held out
+};
+
+VideoData load_video_data(const Args& a) {
+  VideoSource src = a.video;
+  src.video.input = a.input;
+  VideoData d;
+  d.venue = a.scenario.empty() ? video_venue(src) : ScenarioDef::load(a.scenario, a.input);
+  const bool tty = isatty(fileno(stderr)) && !a.quiet;
+  FlowProgress progress;
+  if (tty)
+    progress = [](long done, long total) {
+      g_progress_line = true;
+      std::fprintf(stderr, "\rflow: frame %ld of %ld ", done, total);
+      std::fflush(stderr);
+    };
+  d.fields = load_video_fields(src, &d.venue, progress);
+  if (tty) {
+    std::fputc('\n', stderr);
+    g_progress_line = false;
+  }
+  d.split = static_cast<size_t>(std::lround(a.video_learn.train_share * static_cast<double>(d.fields.flow.fields.size())));
+  return d;
+}
+
+int cmd_train_video(const Args& a) {
+  if (!a.datasets.empty() && !a.datasets[0].second.empty()) usage_error("train takes --video or --trajectories, not both");
+  const VideoData d = load_video_data(a);
+  json options = a.train;
+  options["threads"] = a.threads;
+  options["desired_speed"] = a.desired_speed;
+  if (!options.contains("loss")) options["loss"] = "grid_velocity";
+  TrainOptions o;
+  parse_train_options(JsonReader(options, "options"), o);
+  if (o.loss != TrainOptions::Loss::GridVelocity) usage_error("a video trains with --loss grid_velocity only (nobody is tracked)");
+  VideoLearnOptions vo = a.video_learn;
+  if (a.stride_given) vo.stride = a.stride;
+  vo.desired_speed = o.desired_speed;
+  o.window = vo.clip;  // what messages about too short a video name
+  std::vector<TrainWindow> train, val;
+  const double fps = d.fields.flow.info.fps;
+  make_video_windows(d.venue, d.fields.flow.fields, fps, d.split, vo, o.validation_fraction, train, val);
+  const Model start = !a.model.empty() ? Model::load(a.model, a.input) : d.venue.model_or_default();
+  if (!a.quiet)
+    std::printf("training %s material on %zu clips of %g s (%zu validation) from fields 0..%zu of %zu; %g persons/m2 sampled\n",
+                material_name(start.material), train.size(), vo.clip, val.size(), d.split, d.fields.flow.fields.size(), vo.density);
+  TrainResult r = train_on_windows({d.venue}, train, val, start, o, [&](const TrainProgress& p) {
+    if (a.quiet || std::isnan(p.validation_loss)) return;
+    std::printf("  iter %4d  train loss %.5f  |grad| %.3g  validation %.5f%s\n", p.iteration, p.train_loss, p.grad_norm,
+                p.validation_loss, p.improved ? "  (best)" : "");
+    std::fflush(stdout);
+  });
+  Model m = r.model;
+  m.name = std::string("learned ") + material_name(m.material);
+  m.description = "learned from the optical flow of " + a.video.path + " (fields 0.." + std::to_string(d.split) +
+                  ", grid velocity loss); validation loss " + format_number(r.initial_validation) + " -> " +
+                  format_number(r.best_validation) + " (m/s)2";
+  save_model(m, a.out);
+  std::printf("validation grid velocity loss %.5f -> %.5f (m/s)2 (best at iteration %d of %d%s); wrote %s\n", r.initial_validation,
+              r.best_validation, r.best_iteration, r.iterations, r.early_stopped ? ", stopped early" : "", a.out.c_str());
+  return 0;
+}
+
+int cmd_predict_video(const Args& a) {
+  const VideoData d = load_video_data(a);
+  std::vector<Model> models{d.venue.model_or_default()};
+  for (const auto& p : a.models) models.push_back(Model::load(p, a.input));
+  VideoLearnOptions vo = a.video_learn;
+  vo.desired_speed = desired_speed_of(a);
+  const auto preds = predict_video(d.venue, models, d.fields.flow.fields, d.fields.flow.covered, d.fields.flow.info.fps, d.split,
+                                   vo, a.threads);
+  std::printf("Err_vel (m2/s2, observed nodes away from the view's border) from field %zu of %zu:\n%-26s", d.split,
+              d.fields.flow.fields.size(), "horizon (s)");
+  for (const auto& h : preds[0].horizons) std::printf(" %9.2f", h.seconds);
+  std::printf("\n");
+  for (const auto& p : preds) {
+    std::printf("%-26s", p.method.c_str());
+    for (const auto& h : p.horizons) std::printf(" %9.5f", h.err_vel);
+    std::printf("\n");
+  }
+  if (!a.out.empty()) {
+    std::error_code ec;
+    std::filesystem::create_directories(a.out, ec);
+    if (ec) throw Error(a.out + ": cannot create folder (" + ec.message() + ")");
+    save_json_file(json{{"video", a.video.path}, {"fields", d.fields.flow.fields.size()}, {"start", d.split},
+                        {"fps", d.fields.flow.info.fps}, {"unit", "m2/s2"}, {"methods", video_prediction_json(preds)}},
+                   a.out + "/prediction.json");
+    write_video_prediction_png(a.out + "/prediction.png", preds, "grid velocity error on the held-out part of the video");
+  }
+  return 0;
+}
+
 int cmd_train(const Args& a) {
   if (a.help) { std::fputs(kTrainHelp, stdout); return 0; }
-  if (a.datasets.empty()) usage_error("train needs --scenario S --trajectories T [T...]");
   if (a.out.empty()) usage_error("train needs --out MODEL.json");
   if (!a.positional.empty()) usage_error("train takes no positional arguments (got '" + a.positional[0] + "')");
   if (a.models.size() > 1) usage_error("train takes one --model (the starting point)");
@@ -531,6 +649,8 @@ int cmd_train(const Args& a) {
     const std::filesystem::path dir = std::filesystem::absolute(a.out).parent_path();
     if (!std::filesystem::is_directory(dir)) throw Error("cannot write " + a.out + ": folder " + dir.string() + " does not exist");
   }
+  if (!a.video.path.empty()) return cmd_train_video(a);
+  if (a.datasets.empty()) usage_error("train needs --scenario S --trajectories T [T...]");
   // The same request a program sends through the C ABI (cmpm_TrainModel), checked by the same
   // parse_train_job.
   json request = {{"datasets", json::array()}};

@@ -126,6 +126,34 @@ check "predict horizon too long" 2 "$cli" predict --scenario "$src/scenarios/bot
 check "predict bad model" 1 "$cli" predict --scenario "$src/scenarios/bottleneck.json" \
   --trajectories "$work/sim/trajectories.txt" --model "$src/tests/bad/model_negative_E.json"
 
+# Video: film a crowd, extract its flow, learn from it and predict it (a few iterations: the
+# commands and their files, not the numbers; tests/test_vision.cpp and benchmarks/video/ check those).
+check "render-video" 0 "$cli" render-video "$src/scenarios/video_exit.json" --out "$work/video" --duration 5 --settle 1 --size 320x240
+contains "render-video" "51 frames of 320 x 240"
+check "flow" 0 "$cli" flow "$work/video/video.avi" --out "$work/flow" --calibration "$work/video/calibration.json" \
+  --scenario "$src/scenarios/video_exit.json"
+for f in fields.npy fields.npy.json field_mean.png field_middle.png frame_flow.png flow.json; do
+  [ -s "$work/flow/$f" ] || { echo "FAIL flow: $f missing"; failures=$((failures + 1)); }
+done
+check "flow needs calibration or scale" 1 "$cli" flow "$work/video/video.avi" --out "$work/flow2"
+contains "flow needs calibration or scale" "needs a calibration file"
+check "flow junk video" 1 "$cli" flow "$src/tests/bad/model_negative_E.json" --out "$work/flow2" --scale 0.05
+contains "flow junk video" "OpenCV cannot decode it as a video"
+check "flow roi outside" 1 "$cli" flow "$work/video/video.avi" --out "$work/flow2" --scale 0.05 --roi 0,0,400,0,0,100
+contains "flow roi outside" "lies outside the 320 x 240 frame"
+printf '{"format": "crowdmpm-calibration", "version": 1, "image_points": [[0, 0], [1, 0], [2, 0]], "world_points": [[0, 0], [1, 0], [2, 0]]}' > "$work/cal3.json"
+check "flow three-point calibration" 1 "$cli" flow "$work/video/video.avi" --out "$work/flow2" --calibration "$work/cal3.json"
+contains "flow three-point calibration" "at least 4 image <-> world point pairs"
+video=(--video "$work/video/video.avi" --calibration "$work/video/calibration.json" --scenario "$src/scenarios/video_exit.json" --density 4)
+check "train --video" 0 "$cli" train "${video[@]}" --clip-length 0.6 --stride 0.2 --iterations 2 --batch 1 --out "$work/video_model.json" --quiet
+contains "train --video" "validation grid velocity loss"
+check "predict --video" 0 "$cli" predict "${video[@]}" --model "$work/video_model.json" --out "$work/video_pred"
+contains "predict --video" "constant velocity"
+contains "predict --video" "learned crowd"
+[ -s "$work/video_pred/prediction.png" ] || { echo "FAIL predict --video: prediction.png missing"; failures=$((failures + 1)); }
+check "train --video too short" 1 "$cli" train "${video[@]}" --clip-length 30 --out "$work/video_model.json" --quiet
+contains "train --video too short" "windows of 30 s"
+
 if [ "$failures" -ne 0 ]; then
   echo "$failures CLI check(s) failed"
   exit 1

@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "engine/core/error.hpp"
+#include "engine/io/chart.hpp"
 #include "engine/sim/stencil.hpp"
 #include "engine/vision/video_job.hpp"
 
@@ -14,10 +15,11 @@ void VideoLearnOptions::check() const {
   if (!(clip > 0 && stride > 0)) throw Error("video learning: clip and stride must be > 0 s");
   if (!(train_share > 0 && train_share < 1)) throw Error("video learning: train share must be in (0, 1), got " + format_number(train_share));
   if (start_frames < 1) throw Error("video learning: start_frames must be >= 1");
+  if (!(presence >= 0)) throw Error("video learning: presence must be >= 0 s");
   if (horizons < 1 || horizons > 100) throw Error("video learning: horizons must be 1..100");
 }
 
-ObservedState sample_particles(const GridVelocityField& f, double density) {
+ObservedState sample_particles(const GridVelocityField& f, double density, const Geometry* venue) {
   if (!(density > 0)) throw Error("sample_particles: density must be > 0");
   ObservedState s;
   const double a = std::sqrt(2 / (std::sqrt(3.0) * density));  // hexagonal spacing
@@ -29,6 +31,7 @@ ObservedState sample_particles(const GridVelocityField& f, double density) {
       const int i = static_cast<int>(std::lround((x - f.origin.x()) / f.dx)), j = static_cast<int>(std::lround((y - f.origin.y()) / f.dx));
       if (i < 0 || j < 0 || i >= f.nx || j >= f.ny || !(f.mask[static_cast<size_t>(j) * f.nx + i] > 0)) continue;
       const Vec2 p(x, y);
+      if (venue && venue->sdf(p) < a / 2) continue;
       Vec2 v = Vec2::Zero();
       double w_sum = 0;
       for_stencil_on_grid(f.origin, f.dx, f.nx, f.ny, p, [&](size_t n, double w, const Vec2&) {
@@ -48,15 +51,23 @@ ObservedState sample_particles(const GridVelocityField& f, double density) {
   return s;
 }
 
-namespace {
-GridVelocityField start_field(const std::vector<GridVelocityField>& fields, size_t start, int frames) {
-  const size_t first = start + 1 >= static_cast<size_t>(frames) ? start + 1 - static_cast<size_t>(frames) : 0;
-  return mean_field(std::vector<GridVelocityField>(fields.begin() + static_cast<long>(first), fields.begin() + static_cast<long>(start) + 1));
+GridVelocityField start_field(const std::vector<GridVelocityField>& fields, size_t start, double fps, const VideoLearnOptions& vo) {
+  if (start >= fields.size()) throw Error("start_field: field " + std::to_string(start) + " of " + std::to_string(fields.size()));
+  auto back = [&](long frames) { return static_cast<long>(start) + 1 >= frames ? static_cast<long>(start) + 1 - frames : 0L; };
+  GridVelocityField f = mean_field(std::vector<GridVelocityField>(fields.begin() + back(vo.start_frames), fields.begin() + static_cast<long>(start) + 1));
+  const long present = std::max(1L, std::lround(vo.presence * fps));
+  for (long k = back(present); k <= static_cast<long>(start); ++k)
+    for (size_t i = 0; i < f.mask.size(); ++i)
+      if (fields[static_cast<size_t>(k)].mask[i] > 0 && !(f.mask[i] > 0)) {
+        f.mask[i] = 1;
+        f.velocity[i] = Vec2::Zero();
+      }
+  return f;
 }
-}  // namespace
 
-void make_video_windows(const std::vector<GridVelocityField>& fields, double fps, size_t end, const VideoLearnOptions& vo,
-                        double validation_fraction, std::vector<TrainWindow>& train, std::vector<TrainWindow>& validation) {
+void make_video_windows(const ScenarioDef& venue, const std::vector<GridVelocityField>& fields, double fps, size_t end,
+                        const VideoLearnOptions& vo, double validation_fraction, std::vector<TrainWindow>& train,
+                        std::vector<TrainWindow>& validation) {
   vo.check();
   train.clear();
   validation.clear();
@@ -72,7 +83,7 @@ void make_video_windows(const std::vector<GridVelocityField>& fields, double fps
     const bool is_val = i >= n_train;
     if (!is_val && starts[i] + length > val_start) continue;
     TrainWindow w;
-    w.start = sample_particles(start_field(fields, starts[i], vo.start_frames), vo.density);
+    w.start = sample_particles(start_field(fields, starts[i], fps, vo), vo.density, &venue.geo);
     if (w.start.ids.empty()) continue;
     w.start.frame = static_cast<long>(starts[i]);
     w.framerate = fps;
@@ -86,15 +97,17 @@ namespace {
 // Err_vel: mean over observed, non-border nodes of |predicted - observed|^2 (predicted 0 where it has nobody).
 void score(const GridVelocityField& pred, const GridVelocityField& obs, const std::vector<char>& inner, VideoHorizon& h) {
   double s = 0;
-  long n = 0;
+  long n = 0, empty = 0;
   for (size_t i = 0; i < obs.velocity.size(); ++i) {
     if (!(obs.mask[i] > 0) || !inner[i]) continue;
+    empty += pred.mask[i] > 0 ? 0 : 1;
     const Vec2 p = pred.mask[i] > 0 ? pred.velocity[i] : Vec2::Zero();
     s += (p - obs.velocity[i]).squaredNorm();
     ++n;
   }
   h.err_vel = n ? s / static_cast<double>(n) : std::nan("");
   h.nodes = n;
+  h.empty = n ? static_cast<double>(empty) / static_cast<double>(n) : 0;
 }
 
 }  // namespace
@@ -121,7 +134,7 @@ std::vector<VideoPrediction> predict_video(const ScenarioDef& scenario, const st
     const size_t h = std::max<size_t>(1, static_cast<size_t>(std::lround(static_cast<double>(k) * static_cast<double>(held) / vo.horizons)));
     if (at.empty() || h > at.back()) at.push_back(h);
   }
-  const ObservedState s = sample_particles(start_field(fields, start, vo.start_frames), vo.density);
+  const ObservedState s = sample_particles(start_field(fields, start, fps, vo), vo.density, &scenario.geo);
   if (s.ids.empty()) throw Error("video prediction: the field at the start of the held-out part keeps no moving node");
   std::vector<VideoPrediction> out;
   auto add = [&](const std::string& method, const std::function<GridVelocityField(size_t)>& predict) {
@@ -147,10 +160,34 @@ std::vector<VideoPrediction> predict_video(const ScenarioDef& scenario, const st
     for (size_t p = 0; p < x.size(); ++p) x[p] = s.x[p] + s.v[p] * (static_cast<double>(h) / fps);
     return grid_velocity_of(x, s.v, 1, shape, vo.min_mass);
   });
-  const ScenarioDef windowed = window_scenario(scenario, false);
+  const ScenarioDef windowed = window_scenario(scenario, true);  // people leave by the exits, as they do on video
+  // Inflow nodes: seen nodes on the edge of the view where the start field flows in.
+  struct Inflow {
+    Vec2 x, v;
+    double rate, due = 0;
+  };
+  std::vector<Inflow> inflow;
+  const GridVelocityField sf = start_field(fields, start, fps, vo);
+  const double spacing = std::sqrt(2 / (std::sqrt(3.0) * vo.density));
+  if (vo.inflow)
+    for (int j = 0; j < f0.ny; ++j)
+      for (int i = 0; i < f0.nx; ++i) {
+        const size_t n = static_cast<size_t>(j) * f0.nx + i;
+        if (!covered[n] || !(sf.mask[n] > 0)) continue;
+        Vec2 out_dir = Vec2::Zero();
+        for (const auto& d : {Vec2(1, 0), Vec2(-1, 0), Vec2(0, 1), Vec2(0, -1)}) {
+          const int a = i + static_cast<int>(d.x()), b = j + static_cast<int>(d.y());
+          if (a < 0 || b < 0 || a >= f0.nx || b >= f0.ny || !covered[static_cast<size_t>(b) * f0.nx + a]) out_dir += d;
+        }
+        if (out_dir.squaredNorm() == 0) continue;
+        const double in_speed = -sf.velocity[n].dot(out_dir.normalized());
+        const Vec2 x = f0.origin + f0.dx * Vec2(i, j);
+        if (in_speed > 0 && scenario.geo.sdf(x) >= spacing / 2) inflow.push_back(Inflow{x, sf.velocity[n], vo.density * in_speed * f0.dx});
+      }
   for (const Model& m : models) {
-    WindowSim ws = start_window(windowed, m, s, WindowOptions{threads, DesiredSpeed::Observed});
+    WindowSim ws = start_window(windowed, m, s, WindowOptions{threads, vo.desired_speed});
     Simulation& sim = *ws.sim;
+    for (auto& in : inflow) in.due = 0;
     std::vector<GridVelocityField> at_h;
     size_t done = 0;
     for (size_t h : at) {
@@ -158,6 +195,25 @@ std::vector<VideoPrediction> predict_video(const ScenarioDef& scenario, const st
       while (static_cast<long>(done) < target) {
         sim.step();
         ++done;
+        for (auto& in : inflow) {
+          in.due = std::min(2.0, in.due + in.rate * windowed.dt);
+          if (in.due < 1) continue;
+          const World& w = sim.world();
+          bool free = true;
+          for (size_t p = 0; p < w.size() && free; ++p) free = (w.x[p] - in.x).squaredNorm() >= 0.25 * spacing * spacing;
+          if (!free) continue;  // stays due until the spot clears
+          in.due -= 1;
+          AgentDef a;
+          a.position = in.x;
+          a.velocity = in.v;
+          a.body_radius = std::clamp(0.5 * spacing, 0.05, m.params.body_radius);
+          a.comfort_distance = m.params.comfort_distance;
+          a.desired_speed = vo.desired_speed == DesiredSpeed::Scenario ? sim.draw_speed(windowed.groups[0])
+                                                                       : std::clamp(in.v.norm(), 0.0, std::min(12.0, m.params.max_speed));
+          a.behaviour = sim.behaviour_of_group(0);
+          a.group = 0;
+          sim.add_agent(a);
+        }
       }
       at_h.push_back(grid_velocity_of(sim.world().x, sim.world().v, 1, sim.grid(), vo.min_mass));
     }
@@ -167,12 +223,65 @@ std::vector<VideoPrediction> predict_video(const ScenarioDef& scenario, const st
   return out;
 }
 
+ScenarioDef video_venue(const VideoSource& src) {
+  const VideoInfo info = probe_video(src.path, src.video);
+  Calibration cal;
+  if (!src.calibration.empty()) cal = Calibration::load(src.calibration, info.height, src.video.input);
+  else if (src.scale > 0) cal = Calibration::from_scale(src.scale, Vec2(0, info.height), "--scale");
+  else throw Error(src.path + ": an uncalibrated video needs a calibration file or a scale in metres per pixel");
+  const Grid g = grid_covering(cal, src.video.roi, info.width, info.height, src.cell);
+  // The ground in view plus a margin of two cells on every side, whose outer half is the exits:
+  // people walk out of view and leave there, away from the nodes the prediction is scored on.
+  const double margin = 2 * g.dx;
+  const Vec2 lo = g.origin + Vec2(2 * g.dx, 2 * g.dx) - Vec2(margin, margin);
+  // Grid::init gives nx = ceil((hi - lo) / dx) + 5: a hair under a whole number of cells.
+  const Vec2 hi = lo + g.dx * (Vec2(g.nx - 1, g.ny - 1) - Vec2(1e-9, 1e-9));
+  const double band = margin / 2;
+  const double steps = std::ceil(1 / (info.fps * 0.01) - 1e-9);  // per frame
+  const double dt = 1 / (info.fps * steps);
+  const json doc{{"format", "crowdmpm-scenario"},
+                 {"version", 1},
+                 {"name", "video venue"},
+                 {"description", "the ground seen in " + src.path + ", without walls; people walk on the way they moved when placed"},
+                 {"domain", {{"min", {lo.x(), lo.y()}}, {"max", {hi.x(), hi.y()}}, {"cell_size", g.dx}}},
+                 {"time", {{"dt", dt}, {"duration", 3600}, {"output_rate", info.fps}}},
+                 {"geometry",
+                  {{"exits", json::array({{{"id", "west_edge"}, {"rect", {lo.x(), lo.y(), lo.x() + band, hi.y()}}},
+                                          {{"id", "east_edge"}, {"rect", {hi.x() - band, lo.y(), hi.x(), hi.y()}}},
+                                          {{"id", "south_edge"}, {"rect", {lo.x(), lo.y(), hi.x(), lo.y() + band}}},
+                                          {{"id", "north_edge"}, {"rect", {lo.x(), hi.y() - band, hi.x(), hi.y()}}}})}}},
+                 {"groups", json::array({{{"id", "crowd"},
+                                           {"spawn", {{"rect", {lo.x(), lo.y(), hi.x(), hi.y()}}}},
+                                           {"count", 0},
+                                           {"desired_speed", 1.0},
+                                           {"behaviour", {{"type", "heading"}}}}})}};
+  return ScenarioDef::parse_text(doc.dump(), ".");
+}
+
+void write_video_prediction_png(const std::string& path, const std::vector<VideoPrediction>& ps, const std::string& title) {
+  static const std::array<int, 3> colours[] = {{120, 120, 120}, {40, 120, 220}, {230, 120, 30}, {40, 160, 60}, {200, 40, 40}, {140, 60, 180}};
+  Chart c;
+  c.title = title;
+  c.x_label = "horizon (s)";
+  c.y_label = "Err_vel (m2/s2)";
+  for (size_t i = 0; i < ps.size(); ++i) {
+    ChartSeries s;
+    s.name = ps[i].method;
+    s.style = ChartSeries::Style::LinePoints;
+    s.rgb = colours[i % 6];
+    for (const auto& h : ps[i].horizons)
+      if (std::isfinite(h.err_vel)) s.points.emplace_back(h.seconds, h.err_vel);
+    c.series.push_back(std::move(s));
+  }
+  write_chart_png(path, c);
+}
+
 json video_prediction_json(const std::vector<VideoPrediction>& ps) {
   json a = json::array();
   for (const auto& p : ps) {
     json hs = json::array();
     for (const auto& h : p.horizons)
-      hs.push_back({{"seconds", h.seconds}, {"frame", h.frame}, {"err_vel", h.err_vel}, {"nodes", h.nodes}});
+      hs.push_back({{"seconds", h.seconds}, {"frame", h.frame}, {"err_vel", h.err_vel}, {"nodes", h.nodes}, {"empty", h.empty}});
     a.push_back({{"method", p.method}, {"horizons", hs}});
   }
   return a;

@@ -11,6 +11,7 @@
 
 #include "engine/learn/train.hpp"
 #include "engine/predict/predict.hpp"
+#include "engine/vision/video_job.hpp"
 
 namespace crowdmpm {
 
@@ -20,25 +21,44 @@ struct VideoLearnOptions {
   double stride = 0.6;      // s between clip starts
   double train_share = 0.6; // the first share of the fields trains (its last clips validate); the rest is held out
   int start_frames = 5;     // a start state's velocities: the mean of this many fields up to the start
+  // A crowd that waits does not move and flow does not see it; a node that moved within this
+  // many seconds before the start is taken as still occupied (at velocity 0 if it no longer moves).
+  double presence = 2;
   int horizons = 7;         // prediction horizons spread evenly over the held-out part
-  double min_mass = 0.5;    // persons on a node's stencil for the prediction to have a velocity there
+  double min_mass = 0.1;    // persons on a node's stencil for the prediction to have a velocity there
+  // Desired speeds of the sampled particles: their observed speed (the only choice without a
+  // scenario's distribution), or the scenario group's.
+  DesiredSpeed desired_speed = DesiredSpeed::Observed;
+  // Prediction: the edge of the view keeps feeding the crowd as last seen. Where the start
+  // field flows into the view across its edge, particles enter at the sampling density with the
+  // velocity seen there (density x inward speed x dx persons per second per edge node), placed
+  // when the spot is free. Without it an open view empties from upstream.
+  bool inflow = true;
   void check() const;
 };
 
 // Particles on a hexagonal lattice at `density` over the nodes the field keeps (each lattice
 // point belongs to its nearest node), velocities interpolated from the field with the B-spline
-// weights of the kept nodes. ids 1..n; speed = free speed = |v|.
-ObservedState sample_particles(const GridVelocityField& field, double density);
+// weights of the kept nodes. ids 1..n; speed = free speed = |v|. With a venue, points closer
+// than half the lattice spacing to a wall, an obstacle or the domain's edge are left out (flow
+// splatted across a wall would otherwise put people inside it, and pushing them out piles them up).
+ObservedState sample_particles(const GridVelocityField& field, double density, const Geometry* venue = nullptr);
+
+// The field a state at fields[start] is sampled from: the mean of the last vo.start_frames fields
+// where they move, and velocity 0 where the crowd moved within vo.presence seconds but no longer does.
+GridVelocityField start_field(const std::vector<GridVelocityField>& fields, size_t start, double fps, const VideoLearnOptions& vo);
 
 // Training and validation windows from fields[0, end) (validation: the last share of the clips).
-void make_video_windows(const std::vector<GridVelocityField>& fields, double fps, size_t end, const VideoLearnOptions& vo,
-                        double validation_fraction, std::vector<TrainWindow>& train, std::vector<TrainWindow>& validation);
+void make_video_windows(const ScenarioDef& venue, const std::vector<GridVelocityField>& fields, double fps, size_t end,
+                        const VideoLearnOptions& vo, double validation_fraction, std::vector<TrainWindow>& train,
+                        std::vector<TrainWindow>& validation);
 
 struct VideoHorizon {
   double seconds = 0;  // after the start of the held-out part
   long frame = 0;      // field index
   double err_vel = 0;  // m^2/s^2
   long nodes = 0;
+  double empty = 0;    // share of those nodes where the prediction has nobody (scored as velocity 0)
 };
 struct VideoPrediction {
   std::string method;
@@ -53,5 +73,14 @@ std::vector<VideoPrediction> predict_video(const ScenarioDef& scenario, const st
                                            double fps, size_t start, const VideoLearnOptions& vo, int threads);
 
 json video_prediction_json(const std::vector<VideoPrediction>& p);
+
+// The venue of a video seen without a scenario: the ground the region of interest covers (grid
+// spacing src.cell) and a margin of two cells whose outer half is exits (people walk out of view),
+// one empty group whose people walk on the way they moved when placed (the heading behaviour),
+// a time step dividing the frame interval (at most 0.01 s).
+ScenarioDef video_venue(const VideoSource& src);
+
+// The Err_vel of every method against the horizon, as a chart.
+void write_video_prediction_png(const std::string& path, const std::vector<VideoPrediction>& p, const std::string& title);
 
 }  // namespace crowdmpm
