@@ -587,6 +587,7 @@ int cmd_train_video(const Args& a) {
   if (a.stride_given) vo.stride = a.stride;
   vo.desired_speed = o.desired_speed;
   o.window = vo.clip;  // what messages about too short a video name
+  o.grid_min_mass = vo.min_mass;  // an observed node the particles left costs as in Err_vel
   std::vector<TrainWindow> train, val;
   const double fps = d.fields.flow.info.fps;
   make_video_windows(d.venue, d.fields.flow.fields, fps, d.split, vo, o.validation_fraction, train, val);

@@ -67,6 +67,33 @@ TEST_CASE("grid velocity loss: gradient with respect to positions and velocities
     }
   std::printf("grid velocity loss %.4f, worst relative gradient error %.2e\n", L, worst);
   CHECK(worst < 1e-5);
+  // The variant that scores nodes the particles left as velocity 0 (video learning): exact
+  // gradients too, away from the kink at M = empty_mass; a node with no mass costs |u|^2.
+  const double m0 = 0.35;
+  std::fill(dx.begin(), dx.end(), Vec2::Zero());
+  std::fill(dv.begin(), dv.end(), Vec2::Zero());
+  const double L0 = grid_velocity_loss(x, v, 1, g, obs, &dx, &dv, m0);
+  REQUIRE(L0 > 0);
+  double worst0 = 0;
+  for (size_t p = 0; p < x.size(); ++p)
+    for (int a = 0; a < 2; ++a) {
+      auto xp = x, xm = x, vp = v, vm = v;
+      xp[p][a] += h;
+      xm[p][a] -= h;
+      vp[p][a] += h;
+      vm[p][a] -= h;
+      const double fdx = (grid_velocity_loss(xp, v, 1, g, obs, nullptr, nullptr, m0) - grid_velocity_loss(xm, v, 1, g, obs, nullptr, nullptr, m0)) / (2 * h);
+      const double fdv = (grid_velocity_loss(x, vp, 1, g, obs, nullptr, nullptr, m0) - grid_velocity_loss(x, vm, 1, g, obs, nullptr, nullptr, m0)) / (2 * h);
+      worst0 = std::max({worst0, rel_err(dx[p][a], fdx), rel_err(dv[p][a], fdv)});
+    }
+  std::printf("grid velocity loss with empty nodes %.4f, worst relative gradient error %.2e\n", L0, worst0);
+  CHECK(worst0 < 1e-5);
+  GridVelocityField far = obs;
+  std::fill(far.mask.begin(), far.mask.end(), 0.0);
+  far.mask[static_cast<size_t>(g.node(g.nx - 1, g.ny - 1))] = 1;  // a corner no particle reaches
+  far.velocity[static_cast<size_t>(g.node(g.nx - 1, g.ny - 1))] = Vec2(0.6, 0.8);
+  CHECK(grid_velocity_loss(x, v, 1, g, far, nullptr, nullptr, m0) == Approx(1.0));
+  CHECK(grid_velocity_loss(x, v, 1, g, far, nullptr, nullptr) == 0);
   // The particles' own field has zero loss; a field on another grid is an error naming both.
   CHECK(grid_velocity_loss(x, v, 1, g, grid_velocity_of(x, v, 1, g, 0.2), nullptr, nullptr) == Approx(0).margin(1e-20));
   GridVelocityField other = obs;

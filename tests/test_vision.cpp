@@ -207,6 +207,44 @@ TEST_CASE("the pedestrian video vtest.avi goes through flow extraction and shows
   CHECK(j["mean_speed"].get<double>() < 3);
   for (const char* f : {"fields.npy", "fields.npy.json", "field_mean.png", "field_middle.png", "frame_flow.png", "flow.json"})
     CHECK(std::filesystem::file_size(dir + "/" + f) > 0);
+
+  // A short training run and a prediction on the same frames, end to end: the venue is the
+  // ground in view, particles walk on the way they moved.
+  src.video.count = 80;
+  const ScenarioDef venue = video_venue(src);
+  const VideoFields vf = load_video_fields(src, &venue);
+  REQUIRE(vf.flow.fields.size() == 79);
+  VideoLearnOptions vo;
+  vo.density = 1;
+  vo.clip = 1.2;
+  vo.stride = 0.4;
+  std::vector<TrainWindow> train, val;
+  const size_t split = 48;
+  make_video_windows(venue, vf.flow.fields, vf.flow.info.fps, split, vo, 0.25, train, val);
+  REQUIRE(!train.empty());
+  REQUIRE(!val.empty());
+  TrainOptions to;
+  to.loss = TrainOptions::Loss::GridVelocity;
+  to.iterations = 3;
+  to.batch = 1;
+  to.eval_every = 1;
+  to.learn_network = false;
+  to.params = {"tau", "v0_scale"};
+  const TrainResult r = train_on_windows({venue}, train, val, venue.model_or_default(), to);
+  CHECK(std::isfinite(r.best_validation));
+  CHECK(r.best_validation <= r.initial_validation);
+  const auto preds = predict_video(venue, {venue.model_or_default(), r.model}, vf.flow.fields, vf.flow.covered, vf.flow.info.fps,
+                                   split, vo, 1);
+  REQUIRE(preds.size() == 4);
+  for (const auto& p : preds) {
+    REQUIRE(p.horizons.size() == 7);
+    for (const auto& h : p.horizons) {
+      CHECK(std::isfinite(h.err_vel));
+      CHECK(h.nodes > 0);
+    }
+  }
+  write_video_prediction_png(dir + "/prediction.png", preds, "vtest.avi");
+  CHECK(std::filesystem::file_size(dir + "/prediction.png") > 0);
 }
 
 TEST_CASE("particles sampled from a field fill its moving nodes at the density asked and with its velocities", "[vision]") {

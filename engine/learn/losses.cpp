@@ -39,7 +39,8 @@ void check_field(const GridVelocityField& f, const Grid& g) {
 }  // namespace
 
 double grid_velocity_loss(const std::vector<Vec2>& x, const std::vector<Vec2>& v, double mass, const Grid& shape,
-                          const GridVelocityField& observed, std::vector<Vec2>* dL_dx, std::vector<Vec2>* dL_dv) {
+                          const GridVelocityField& observed, std::vector<Vec2>* dL_dx, std::vector<Vec2>* dL_dv,
+                          double empty_mass) {
   check_field(observed, shape);
   const double norm = observed.mask_sum();
   if (norm <= 0) return 0;
@@ -52,7 +53,17 @@ double grid_velocity_loss(const std::vector<Vec2>& x, const std::vector<Vec2>& v
   std::vector<double> dM(shape.nodes(), 0);
   for (size_t i = 0; i < shape.nodes(); ++i) {
     const double m = observed.mask[i];
-    if (m <= 0 || M[i] < 1e-9) continue;
+    if (m <= 0) continue;
+    if (empty_mass > 0) {
+      // f_i = |P / max(M, m0) - u|^2: dP = 2 r / max(M, m0); dM = -2 r . vel / M above m0, 0 below.
+      const double D = std::max(M[i], empty_mass);
+      const Vec2 vel = P[i] / D, r = vel - observed.velocity[i];
+      loss += m * r.squaredNorm() / norm;
+      dP[i] = 2 * m * r / (D * norm);
+      dM[i] = M[i] >= empty_mass ? -2 * m * r.dot(vel) / (M[i] * norm) : 0.0;
+      continue;
+    }
+    if (M[i] < 1e-9) continue;
     const Vec2 vel = P[i] / M[i], r = vel - observed.velocity[i];
     loss += m * M[i] * r.squaredNorm() / norm;
     dP[i] = 2 * m * r / norm;

@@ -29,7 +29,12 @@ void trajectory_loss_at(const std::vector<Vec2>& x, const std::vector<Vec2>& tar
 // L = sum_i mask_i M_i |P_i / M_i - u_i|^2 / sum_i mask_i, with u the observed field (nodes with
 // M_i below 1e-9 contribute nothing). The gradient with respect to the particles' x and v is
 // added to dL_dx, dL_dv when given. Throws Error if the field's grid differs from `shape`.
+// With empty_mass > 0 it is instead L = sum_i mask_i |P_i / max(M_i, empty_mass) - u_i|^2 /
+// sum_i mask_i: every observed node counts alike and one the particles left counts as velocity
+// 0, as the prediction error Err_vel scores it (video learning: a model that lets the crowd
+// drain out of where it is seen is penalised for it).
 double grid_velocity_loss(const std::vector<Vec2>& x, const std::vector<Vec2>& v, double mass, const Grid& shape,
-                          const GridVelocityField& observed, std::vector<Vec2>* dL_dx, std::vector<Vec2>* dL_dv);
+                          const GridVelocityField& observed, std::vector<Vec2>* dL_dx, std::vector<Vec2>* dL_dv,
+                          double empty_mass = 0);
 
 }  // namespace crowdmpm

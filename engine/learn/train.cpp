@@ -248,7 +248,9 @@ double window_loss(const ScenarioDef& windowed, const TrainWindow& tw, const Mod
         gx.assign(w.size(), Vec2::Zero());
         gv.assign(w.size(), Vec2::Zero());
       }
-      const double l = grid_velocity_loss(w.x, w.v, mass, sim.grid(), fields[s], dx ? &gx : nullptr, dx ? &gv : nullptr);
+      // Observed fields (video): nodes the particles left count as velocity 0, as Err_vel scores them.
+      const double empty_mass = tw.fields.empty() ? 0.0 : o.grid_min_mass * mass;
+      const double l = grid_velocity_loss(w.x, w.v, mass, sim.grid(), fields[s], dx ? &gx : nullptr, dx ? &gv : nullptr, empty_mass);
       if (dx)
         for (size_t p = 0; p < w.size(); ++p) {
           (*dx)[p] += weight * gx[p];

@@ -31,6 +31,7 @@ struct TrainOptions {
   // cover (at least grid_min_mass persons), averaged over the window's frames.
   enum class Loss { Trajectory, GridVelocity };
   Loss loss = Loss::Trajectory;
+  // Windows with observed fields (video) use the loss's empty_mass form with this many persons.
   double grid_min_mass = 0.5;
   enum class Optimizer { Adam, Lbfgs };
   // Adam on minibatches (default), or L-BFGS with a backtracking line search on the full batch
