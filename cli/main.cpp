@@ -544,6 +544,16 @@ int cmd_predict(const Args& a) {
   return 0;
 }
 
+// A "flow: frame k of n" line on a terminal, none otherwise.
+FlowProgress flow_progress(bool tty) {
+  if (!tty) return nullptr;
+  return [](long done, long total) {
+    g_progress_line = true;
+    std::fprintf(stderr, "\rflow: frame %ld of %ld ", done, total);
+    std::fflush(stderr);
+  };
+}
+
 // The venue, the fields and the split of a video (train --video, predict --video).
 struct VideoData {
   ScenarioDef venue;
@@ -557,13 +567,7 @@ VideoData load_video_data(const Args& a) {
   VideoData d;
   d.venue = a.scenario.empty() ? video_venue(src) : ScenarioDef::load(a.scenario, a.input);
   const bool tty = isatty(fileno(stderr)) && !a.quiet;
-  FlowProgress progress;
-  if (tty)
-    progress = [](long done, long total) {
-      g_progress_line = true;
-      std::fprintf(stderr, "\rflow: frame %ld of %ld ", done, total);
-      std::fflush(stderr);
-    };
+  const FlowProgress progress = flow_progress(tty);
   d.fields = load_video_fields(src, &d.venue, progress);
   if (tty) {
     std::fputc('\n', stderr);
@@ -716,13 +720,7 @@ int cmd_flow(const Args& a) {
   std::optional<ScenarioDef> sc;
   if (!a.scenario.empty()) sc = ScenarioDef::load(a.scenario, a.input);
   const bool tty = isatty(fileno(stderr)) && !a.quiet;
-  FlowProgress progress;
-  if (tty)
-    progress = [](long done, long total) {
-      g_progress_line = true;
-      std::fprintf(stderr, "\rflow: frame %ld of %ld ", done, total);
-      std::fflush(stderr);
-    };
+  const FlowProgress progress = flow_progress(tty);
   const json j = run_flow_job(src, sc ? &*sc : nullptr, a.out, progress);
   if (tty) std::fputc('\n', stderr);
   std::printf("%s: %zu fields of %d x %d nodes (%s, %s) from %d x %d frames at %.3g fps; %.0f moving nodes per frame, "

@@ -49,43 +49,38 @@ TEST_CASE("grid velocity loss: gradient with respect to positions and velocities
       if ((i + j) % 5 == 0) obs.mask[n] = 0;
     }
   REQUIRE(obs.mask_sum() > 5);
-  std::vector<Vec2> dx(x.size(), Vec2::Zero()), dv(x.size(), Vec2::Zero());
-  const double L = grid_velocity_loss(x, v, 1, g, obs, &dx, &dv);
-  REQUIRE(L > 0);
+  // The loss and the worst relative error of its gradient against central differences.
+  auto check_gradient = [&](double empty_mass, double& worst) {
+    std::vector<Vec2> dx(x.size(), Vec2::Zero()), dv(x.size(), Vec2::Zero());
+    const double L = grid_velocity_loss(x, v, 1, g, obs, &dx, &dv, empty_mass);
+    auto loss = [&](const std::vector<Vec2>& xs, const std::vector<Vec2>& vs) {
+      return grid_velocity_loss(xs, vs, 1, g, obs, nullptr, nullptr, empty_mass);
+    };
+    worst = 0;
+    const double h = 1e-6;
+    for (size_t p = 0; p < x.size(); ++p)
+      for (int a = 0; a < 2; ++a) {
+        auto xp = x, xm = x, vp = v, vm = v;
+        xp[p][a] += h;
+        xm[p][a] -= h;
+        vp[p][a] += h;
+        vm[p][a] -= h;
+        const double fdx = (loss(xp, v) - loss(xm, v)) / (2 * h), fdv = (loss(x, vp) - loss(x, vm)) / (2 * h);
+        worst = std::max({worst, rel_err(dx[p][a], fdx), rel_err(dv[p][a], fdv)});
+      }
+    return L;
+  };
   double worst = 0;
-  const double h = 1e-6;
-  for (size_t p = 0; p < x.size(); ++p)
-    for (int a = 0; a < 2; ++a) {
-      auto xp = x, xm = x, vp = v, vm = v;
-      xp[p][a] += h;
-      xm[p][a] -= h;
-      vp[p][a] += h;
-      vm[p][a] -= h;
-      const double fdx = (grid_velocity_loss(xp, v, 1, g, obs, nullptr, nullptr) - grid_velocity_loss(xm, v, 1, g, obs, nullptr, nullptr)) / (2 * h);
-      const double fdv = (grid_velocity_loss(x, vp, 1, g, obs, nullptr, nullptr) - grid_velocity_loss(x, vm, 1, g, obs, nullptr, nullptr)) / (2 * h);
-      worst = std::max({worst, rel_err(dx[p][a], fdx), rel_err(dv[p][a], fdv)});
-    }
+  const double L = check_gradient(0, worst);
+  REQUIRE(L > 0);
   std::printf("grid velocity loss %.4f, worst relative gradient error %.2e\n", L, worst);
   CHECK(worst < 1e-5);
   // The variant that scores nodes the particles left as velocity 0 (video learning): exact
   // gradients too, away from the kink at M = empty_mass; a node with no mass costs |u|^2.
   const double m0 = 0.35;
-  std::fill(dx.begin(), dx.end(), Vec2::Zero());
-  std::fill(dv.begin(), dv.end(), Vec2::Zero());
-  const double L0 = grid_velocity_loss(x, v, 1, g, obs, &dx, &dv, m0);
-  REQUIRE(L0 > 0);
   double worst0 = 0;
-  for (size_t p = 0; p < x.size(); ++p)
-    for (int a = 0; a < 2; ++a) {
-      auto xp = x, xm = x, vp = v, vm = v;
-      xp[p][a] += h;
-      xm[p][a] -= h;
-      vp[p][a] += h;
-      vm[p][a] -= h;
-      const double fdx = (grid_velocity_loss(xp, v, 1, g, obs, nullptr, nullptr, m0) - grid_velocity_loss(xm, v, 1, g, obs, nullptr, nullptr, m0)) / (2 * h);
-      const double fdv = (grid_velocity_loss(x, vp, 1, g, obs, nullptr, nullptr, m0) - grid_velocity_loss(x, vm, 1, g, obs, nullptr, nullptr, m0)) / (2 * h);
-      worst0 = std::max({worst0, rel_err(dx[p][a], fdx), rel_err(dv[p][a], fdv)});
-    }
+  const double L0 = check_gradient(m0, worst0);
+  REQUIRE(L0 > 0);
   std::printf("grid velocity loss with empty nodes %.4f, worst relative gradient error %.2e\n", L0, worst0);
   CHECK(worst0 < 1e-5);
   GridVelocityField far = obs;
