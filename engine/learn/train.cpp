@@ -214,16 +214,18 @@ double window_loss(const ScenarioDef& windowed, const TrainWindow& tw, const Mod
   } else {
     // The recorded velocity field at each target step: positions and one-frame velocities of
     // the people seen in both frames, transferred to the simulation's grid.
-    // Or the observed fields themselves (video).
-    std::vector<GridVelocityField> fields;
+    // Or the observed fields themselves (video), used in place.
+    std::vector<GridVelocityField> made;
+    std::vector<const GridVelocityField*> fields;
+    made.reserve(target.steps.size());  // pointers into it stay valid
     size_t used = 0;
     std::vector<Vec2> start_x(n, Vec2(nan, nan));  // dense order
     for (size_t i = 0; i < ws.ids.size(); ++i)
       if (ws.ids[i]) start_x[static_cast<size_t>(sim.world().index_of(ws.ids[i]))] = tw.start.x[i];
     for (size_t s = 0; s < target.steps.size(); ++s) {
       if (!tw.fields.empty()) {
-        fields.push_back(tw.fields[frame_of[s]]);
-        used += fields.back().mask_sum() > 0 ? 1 : 0;
+        fields.push_back(&tw.fields[frame_of[s]]);
+        used += fields.back()->mask_sum() > 0 ? 1 : 0;
         continue;
       }
       const auto& now = target.targets[s];
@@ -236,21 +238,23 @@ double window_loss(const ScenarioDef& windowed, const TrainWindow& tw, const Mod
         xs.push_back(now[p]);
         vs.push_back((now[p] - before) / gap);
       }
-      fields.push_back(grid_velocity_of(xs, vs, 1, sim.grid(), o.grid_min_mass));
-      used += fields.back().mask_sum() > 0 ? 1 : 0;
+      made.push_back(grid_velocity_of(xs, vs, 1, sim.grid(), o.grid_min_mass));
+      fields.push_back(&made.back());
+      used += made.back().mask_sum() > 0 ? 1 : 0;
     }
     if (used == 0) return nan;
     const double mass = m.params.mass, weight = 1.0 / static_cast<double>(used);
-    term = [&, fields = std::move(fields), mass, weight](size_t s, const World& w, std::vector<Vec2>* dx, std::vector<Vec2>* dv) {
-      if (fields[s].mask_sum() <= 0) return 0.0;
+    // Observed fields (video): nodes the particles left count as velocity 0, as Err_vel scores them.
+    const double empty_mass = tw.fields.empty() ? 0.0 : o.grid_min_mass * mass;
+    term = [&, made = std::move(made), fields = std::move(fields), mass, weight, empty_mass](
+               size_t s, const World& w, std::vector<Vec2>* dx, std::vector<Vec2>* dv) {
+      if (fields[s]->mask_sum() <= 0) return 0.0;
       std::vector<Vec2> gx, gv;
       if (dx) {
         gx.assign(w.size(), Vec2::Zero());
         gv.assign(w.size(), Vec2::Zero());
       }
-      // Observed fields (video): nodes the particles left count as velocity 0, as Err_vel scores them.
-      const double empty_mass = tw.fields.empty() ? 0.0 : o.grid_min_mass * mass;
-      const double l = grid_velocity_loss(w.x, w.v, mass, sim.grid(), fields[s], dx ? &gx : nullptr, dx ? &gv : nullptr, empty_mass);
+      const double l = grid_velocity_loss(w.x, w.v, mass, sim.grid(), *fields[s], dx ? &gx : nullptr, dx ? &gv : nullptr, empty_mass);
       if (dx)
         for (size_t p = 0; p < w.size(); ++p) {
           (*dx)[p] += weight * gx[p];
@@ -660,28 +664,27 @@ std::string resolve_path(const std::string& base, const std::string& p) {
 }
 }  // namespace
 
-void parse_train_options(const JsonReader& options, TrainOptions& o) {
-  const JsonReader* op = &options;
-  op->require_object();
-  op->allow_only({"window", "stride", "iterations", "batch", "learning_rate", "clip", "validation", "eval_every",
+void parse_train_options(const JsonReader& op, TrainOptions& o) {
+  op.require_object();
+  op.allow_only({"window", "stride", "iterations", "batch", "learning_rate", "clip", "validation", "eval_every",
                   "patience", "seed", "threads", "params", "learn_network", "loss", "desired_speed"});
-  o.window = op->in_range("window", 1e-3, 1e4, o.window);
-  o.stride = op->in_range("stride", 1e-3, 1e4, o.stride);
-  o.iterations = op->integer("iterations", 1, 1000000, o.iterations);
-  o.batch = op->integer("batch", 1, 10000, o.batch);
-  o.learning_rate = op->in_range("learning_rate", 1e-9, 10, o.learning_rate);
-  o.clip_norm = op->in_range("clip", 0, 1e12, o.clip_norm);
-  o.validation_fraction = op->in_range("validation", 0.01, 0.9, o.validation_fraction);
-  o.eval_every = op->integer("eval_every", 1, 1000000, o.eval_every);
-  o.patience = op->integer("patience", 1, 1000000, o.patience);
-  o.seed = static_cast<uint64_t>(op->integer("seed", 0, 2000000000, static_cast<long>(o.seed)));
-  o.threads = op->integer("threads", 1, 256, o.threads);
-  o.learn_network = op->boolean("learn_network", o.learn_network);
-  o.loss = op->one_of("loss", {"trajectory", "grid_velocity"}, "trajectory") == "trajectory" ? TrainOptions::Loss::Trajectory
+  o.window = op.in_range("window", 1e-3, 1e4, o.window);
+  o.stride = op.in_range("stride", 1e-3, 1e4, o.stride);
+  o.iterations = op.integer("iterations", 1, 1000000, o.iterations);
+  o.batch = op.integer("batch", 1, 10000, o.batch);
+  o.learning_rate = op.in_range("learning_rate", 1e-9, 10, o.learning_rate);
+  o.clip_norm = op.in_range("clip", 0, 1e12, o.clip_norm);
+  o.validation_fraction = op.in_range("validation", 0.01, 0.9, o.validation_fraction);
+  o.eval_every = op.integer("eval_every", 1, 1000000, o.eval_every);
+  o.patience = op.integer("patience", 1, 1000000, o.patience);
+  o.seed = static_cast<uint64_t>(op.integer("seed", 0, 2000000000, static_cast<long>(o.seed)));
+  o.threads = op.integer("threads", 1, 256, o.threads);
+  o.learn_network = op.boolean("learn_network", o.learn_network);
+  o.loss = op.one_of("loss", {"trajectory", "grid_velocity"}, "trajectory") == "trajectory" ? TrainOptions::Loss::Trajectory
                                                                                               : TrainOptions::Loss::GridVelocity;
-  const std::string speed_mode = op->one_of("desired_speed", {"observed", "scenario", "free"}, "observed");
+  const std::string speed_mode = op.one_of("desired_speed", {"observed", "scenario", "free"}, "observed");
   o.desired_speed = speed_mode == "observed" ? DesiredSpeed::Observed : speed_mode == "scenario" ? DesiredSpeed::Scenario : DesiredSpeed::Free;
-  if (auto ps = op->get("params")) {
+  if (auto ps = op.get("params")) {
     // [] learns no scalar parameter: only the network and the force terms marked "learn".
     for (size_t i = 0; i < ps->size(); ++i) o.params.push_back(ps->item(i).as_string());
     o.learn_scalars = !o.params.empty();

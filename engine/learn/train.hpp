@@ -175,7 +175,7 @@ struct TrainJob {
 };
 TrainJob parse_train_job(const json& request, const std::string& base_dir = "");
 // The "options" object of a training request into o (defaults kept for keys not given).
-void parse_train_options(const JsonReader& options, TrainOptions& o);
+void parse_train_options(const JsonReader& op, TrainOptions& o);
 // The best model of a run, named "learned <kind>" and described: what it was learned from and
 // its validation loss before and after.
 Model describe_learned(const TrainJob& job, const TrainResult& r);

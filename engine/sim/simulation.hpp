@@ -121,12 +121,12 @@ class Simulation {
   void size_neighbour_cells(double cell_reach);  // the cell lists for exactly this reach
   double neighbour_reach() const;
   AgentDef agent_template(const GroupDef& g, int group_index) const;
+  AgentDef with_entry_heading(AgentDef d) const;  // the heading behaviour's direction at entry
 
   ScenarioDef scenario_;
   Model model_;
   ThreadPool pool_;
   World world_;
-  AgentDef with_entry_heading(AgentDef d) const;
   Grid grid_;
   NeighbourGrid neighbours_;
   std::vector<NavField> navs_;

@@ -14,19 +14,21 @@
 
 namespace crowdmpm {
 
+Calibration video_calibration(const VideoSource& src, const VideoInfo& info) {
+  if (!src.calibration.empty()) {
+    if (src.scale > 0) throw Error("give either a calibration file or a scale (metres per pixel), not both");
+    return Calibration::load(src.calibration, info.height, src.video.input);
+  }
+  if (src.scale > 0) return Calibration::from_scale(src.scale, Vec2(0, info.height), "--scale");
+  throw Error(src.path + ": an uncalibrated video needs a calibration file (four or more image <-> ground point pairs) "
+              "or a scale in metres per pixel");
+}
+
 VideoFields load_video_fields(const VideoSource& src, const ScenarioDef* scenario, const FlowProgress& progress,
                               const FlowHook& hook) {
   const VideoInfo info = probe_video(src.path, src.video);
   VideoFields out;
-  if (!src.calibration.empty()) {
-    if (src.scale > 0) throw Error("give either a calibration file or a scale (metres per pixel), not both");
-    out.calibration = Calibration::load(src.calibration, info.height, src.video.input);
-  } else if (src.scale > 0) {
-    out.calibration = Calibration::from_scale(src.scale, Vec2(0, info.height), "--scale");
-  } else {
-    throw Error(src.path + ": an uncalibrated video needs a calibration file (four or more image <-> ground point pairs) "
-                "or a scale in metres per pixel");
-  }
+  out.calibration = video_calibration(src, info);
   if (scenario) {
     out.grid.init(scenario->geo, scenario->cell_size);
   } else {

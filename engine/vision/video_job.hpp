@@ -25,6 +25,10 @@ struct VideoFields {
   Grid grid;  // origin, dx, nx, ny of the fields
 };
 
+// The calibration a source names: its file, or its scale (one of the two is required; info gives
+// the image height a scale's default origin needs).
+Calibration video_calibration(const VideoSource& src, const VideoInfo& info);
+
 // Probes the video, loads its calibration (or the scale; one of the two is required), takes the
 // scenario's grid when a scenario is given (else a grid covering the region of interest) and
 // extracts the fields. Throws Error naming the file and the problem.

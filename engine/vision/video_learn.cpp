@@ -225,10 +225,7 @@ std::vector<VideoPrediction> predict_video(const ScenarioDef& scenario, const st
 
 ScenarioDef video_venue(const VideoSource& src) {
   const VideoInfo info = probe_video(src.path, src.video);
-  Calibration cal;
-  if (!src.calibration.empty()) cal = Calibration::load(src.calibration, info.height, src.video.input);
-  else if (src.scale > 0) cal = Calibration::from_scale(src.scale, Vec2(0, info.height), "--scale");
-  else throw Error(src.path + ": an uncalibrated video needs a calibration file or a scale in metres per pixel");
+  const Calibration cal = video_calibration(src, info);
   const Grid g = grid_covering(cal, src.video.roi, info.width, info.height, src.cell);
   // The ground in view plus a margin of two cells on every side, whose outer half is the exits:
   // people walk out of view and leave there, away from the nodes the prediction is scored on.
