@@ -10,6 +10,7 @@
 #include <filesystem>
 
 #include "engine/run/runner.hpp"
+#include "engine/diagnosis/diagnose.hpp"
 #include "engine/predict/predict.hpp"
 #include "engine/io/render.hpp"
 #include "engine/learn/train.hpp"
@@ -51,6 +52,10 @@ const char* kUsage =
     "  render-video SCENARIO --out DIR [options]\n"
     "                      film a simulated crowd through a tilted camera (synthetic video\n"
     "                      with its calibration and true grid velocity)\n"
+    "  diagnose --scenario S --observed T --out DIR [--model M] [options]\n"
+    "                      find physics the scenario lacks: locate where the fitted model\n"
+    "                      and the recording disagree, fit candidate terms, keep those that\n"
+    "                      lower the held-out error (report.json, pictures, summary.txt)\n"
     "  help [COMMAND]      show help\n"
     "\n"
     "Run 'crowdmpm <command> --help' for the options of one command.\n"
@@ -59,6 +64,35 @@ const char* kUsage =
     "  --max-input-mb N   refuse input files above N MiB (default 256)\n"
     "  --allow-outside-paths\n"
     "                     let a scenario name model and extends files outside its folder\n";
+
+const char* kDiagnoseHelp =
+    "usage: crowdmpm diagnose --scenario S --observed TRAJECTORIES --out DIR [options]\n"
+    "\n"
+    "Fits the model (its v0_scale and tau) on the recording's first part, locates where it and\n"
+    "the recording still disagree (residuals of short rollouts restarted from the recorded\n"
+    "state, tested against the fitted model's own noise), fits candidate force terms there\n"
+    "(obstacle, drift, attractor, vortex, slow_zone) through the simulator and accepts a term\n"
+    "only when it lowers the error on the recording's held-out last part clearly beyond noise\n"
+    "(docs/diagnosis.md). Writes into DIR:\n"
+    "  report.json        verdict, regions, hypotheses, accepted terms, held-out errors\n"
+    "  summary.txt        what was found, in plain language\n"
+    "  residual_before.png, residual_after.png\n"
+    "                     residual velocity maps of the fitted baseline and with the terms\n"
+    "  scenario.json, model.json\n"
+    "                     the venue with the accepted terms and the refitted model\n"
+    "\n"
+    "options:\n"
+    "  --scenario S       the venue the user believes (crowdmpm-scenario JSON); required\n"
+    "  --observed T       the recording (PeTrack text; --trajectories is the same); required\n"
+    "  --out DIR          output folder; required\n"
+    "  --model M          material model to start from (default: the scenario's)\n"
+    "  --train-share F    first share of the recording for fitting (default 0.6)\n"
+    "  --candidates A,B   candidate types to try (default: all)\n"
+    "  --iterations N     optimiser iterations per fit (default 40)\n"
+    "  --seed N           seed of the null simulations and minibatches\n"
+    "  --threads N        worker threads (default 1)\n"
+    "  --options JSON     any other option of a diagnosis request, e.g.\n"
+    "                     '{\"null_replicates\": 8, \"min_gain\": 0.15, \"cell\": 0.5}'\n";
 
 const char* kSimulateHelp =
     "usage: crowdmpm simulate SCENARIO --out DIR [options]\n"
@@ -247,6 +281,8 @@ struct Args {
   std::string desired_speed = "observed";
   std::string material;  // train: start from the default parameters of this model kind
   json train = json::object();  // train: the "options" of a training request (parse_train_job)
+  json diagnose = json::object();  // diagnose: --options (the "options" of a diagnosis request)
+  bool train_share_given = false;
   bool stride_given = false;
   InputPolicy input;  // --max-input-mb, --allow-outside-paths
   std::string save_snapshot, resume;
@@ -301,7 +337,25 @@ Args parse_args(int argc, char** argv, int first) {
     else if (s == "--scenario") {
       a.datasets.push_back({value("--scenario"), {}});
       if (a.scenario.empty()) a.scenario = a.datasets.back().first;
-    } else if (s == "--trajectories") {
+    } else if (s == "--options") {
+      const std::string v = value("--options");
+      try {
+        a.diagnose = json::parse(v);
+      } catch (const std::exception& e) {
+        usage_error("--options must be a JSON object such as '{\"null_replicates\": 4}': " + std::string(e.what()));
+      }
+      if (!a.diagnose.is_object()) usage_error("--options must be a JSON object, got '" + v + "'");
+    } else if (s == "--candidates") {
+      const std::string v = value("--candidates");
+      json list = json::array();
+      for (size_t b = 0; b <= v.size();) {
+        size_t e = v.find(',', b);
+        if (e == std::string::npos) e = v.size();
+        if (e > b) list.push_back(v.substr(b, e - b));
+        b = e + 1;
+      }
+      a.diagnose["candidates"] = list;
+    } else if (s == "--trajectories" || s == "--observed") {
       if (a.datasets.empty()) a.datasets.push_back({"", {}});  // reported as missing --scenario
       a.datasets.back().second.push_back(value("--trajectories"));
       while (i + 1 < argc && argv[i + 1][0] != '-') a.datasets.back().second.push_back(argv[++i]);
@@ -353,7 +407,10 @@ Args parse_args(int argc, char** argv, int first) {
     else if (s == "--video") a.video.path = value("--video");
     else if (s == "--density") a.video_learn.density = parse_double(s, value(s.c_str()), 0.01, 12, "persons/m2 in [0.01, 12]");
     else if (s == "--clip-length") a.video_learn.clip = parse_double(s, value(s.c_str()), 0.01, 1e4, "seconds > 0");
-    else if (s == "--train-share") a.video_learn.train_share = parse_double(s, value(s.c_str()), 0.05, 0.95, "a share in [0.05, 0.95]");
+    else if (s == "--train-share") {
+      a.video_learn.train_share = parse_double(s, value(s.c_str()), 0.05, 0.95, "a share in [0.05, 0.95]");
+      a.train_share_given = true;
+    }
     else if (s == "--horizons") a.video_learn.horizons = static_cast<int>(parse_double(s, value(s.c_str()), 1, 100, "1..100"));
     else if (s == "--calibration") a.video.calibration = value("--calibration");
     else if (s == "--scale") a.video.scale = parse_double(s, value("--scale"), 1e-6, 100, "metres per pixel in (0, 100]");
@@ -759,6 +816,33 @@ int cmd_render_video(const Args& a) {
   return 0;
 }
 
+int cmd_diagnose(const Args& a) {
+  if (a.help) { std::fputs(kDiagnoseHelp, stdout); return 0; }
+  if (a.scenario.empty() || a.trajectories.empty()) usage_error("diagnose needs --scenario and --observed");
+  if (a.out.empty()) usage_error("diagnose needs --out DIR");
+  if (!a.positional.empty()) usage_error("diagnose takes no positional arguments (got '" + a.positional[0] + "')");
+  if (a.datasets.size() > 1 || a.datasets[0].second.size() > 1) usage_error("diagnose takes one --scenario and one --observed file");
+  json options = a.diagnose;
+  options["threads"] = a.threads;
+  if (a.train_share_given) options["train_share"] = a.video_learn.train_share;
+  for (const char* k : {"iterations", "seed"})
+    if (a.train.contains(k)) options[k] = a.train[k];
+  json request = {{"scenario", a.scenario}, {"trajectories", a.trajectories}, {"options", options},
+                  {"input", {{"max_bytes", a.input.max_bytes}, {"allow_outside_paths", a.input.allow_outside_paths}}}};
+  if (!a.model.empty()) request["model"] = a.model;
+  const DiagnoseJob job = parse_diagnose_job(request);
+  std::printf("%s: %zu people, %.1f s at %g fps, in %s\n", a.trajectories.c_str(), job.recording.person_count(),
+              job.recording.duration(), job.recording.framerate, a.scenario.c_str());
+  const DiagnosisResult r = run_diagnosis(job, [&](const std::string& line) {
+    if (!a.quiet) std::printf("%s\n", line.c_str());
+    std::fflush(stdout);
+  });
+  write_diagnosis(job, r, a.out);
+  std::printf("%s\n", r.explanation.c_str());
+  std::printf("wrote %s/report.json, summary.txt, residual_before.png, residual_after.png, scenario.json, model.json\n", a.out.c_str());
+  return 0;
+}
+
 int cmd_validate(const Args& a) {
   if (a.help) { std::fputs(kValidateHelp, stdout); return 0; }
   if (a.positional.size() != 1) usage_error("validate needs exactly one SCENARIO file");
@@ -789,6 +873,7 @@ int main(int argc, char** argv) {
                  : sub == "train"    ? kTrainHelp
                  : sub == "flow"     ? kFlowHelp
                  : sub == "render-video" ? kRenderHelp
+                 : sub == "diagnose" ? kDiagnoseHelp
                                      : kUsage,
                  stdout);
       return 0;
@@ -800,6 +885,7 @@ int main(int argc, char** argv) {
     if (cmd == "train") return cmd_train(a);
     if (cmd == "flow") return cmd_flow(a);
     if (cmd == "render-video") return cmd_render_video(a);
+    if (cmd == "diagnose") return cmd_diagnose(a);
     usage_error("unknown command '" + cmd + "'");
   } catch (const Error& e) {
     std::fprintf(stderr, "%scrowdmpm: error: %s\n", g_progress_line ? "\n" : "", e.what());

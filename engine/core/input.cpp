@@ -72,4 +72,9 @@ std::string confined_path(const std::string& root, const std::string& dir, const
   return path;
 }
 
+std::string resolve_path(const std::string& base, const std::string& p) {
+  if (base.empty() || p.empty() || p[0] == '/') return p;
+  return base + "/" + p;
+}
+
 }  // namespace crowdmpm

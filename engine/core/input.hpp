@@ -23,6 +23,9 @@ struct InputPolicy {
 // returns the size in bytes, or throws Error as read_input_file does.
 uint64_t check_input_file(const std::string& path, const InputPolicy& policy = {});
 
+// p relative to base (p itself when absolute or base is empty): a request's file names.
+std::string resolve_path(const std::string& base, const std::string& p);
+
 // The whole file as bytes. Throws Error "<path>: <reason>" for a missing or unreadable file, a
 // folder or special file, or a file above policy.max_bytes (checked before and while reading).
 std::string read_input_file(const std::string& path, const InputPolicy& policy = {});

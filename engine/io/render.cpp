@@ -140,7 +140,8 @@ void write_field_png(const std::string& path, const Geometry& geo, const View& v
 }
 
 void write_velocity_png(const std::string& path, const Geometry& geo, const View& v, const GridVelocityField& f,
-                        double vmax, const std::string& text, double arrow_seconds) {
+                        double vmax, const std::string& text, double arrow_seconds,
+                        const std::vector<std::pair<Vec2, double>>& circles) {
   if (f.velocity.size() != static_cast<size_t>(f.nx) * f.ny || f.mask.size() != f.velocity.size())
     throw Error(path + ": velocity field arrays do not match its " + std::to_string(f.nx) + " x " + std::to_string(f.ny) + " grid");
   if (!(vmax > 0)) {
@@ -178,6 +179,8 @@ void write_velocity_png(const std::string& path, const Geometry& geo, const View
     cv::arrowedLine(img, to_px(v, c), to_px(v, c + d), cv::Scalar(255, 200, 0), 1, cv::LINE_AA, 0, 0.3);
   }
   draw_geometry(img, v, geo);
+  for (const auto& [c, r] : circles)
+    cv::circle(img, to_px(v, c), std::max(2, static_cast<int>(std::lround(r * v.ppm))), cv::Scalar(255, 0, 255), 2, cv::LINE_AA);
   draw_colour_bar(img, v, 0, vmax, "m/s");
   title(img, text);
   write_png(path, img);

@@ -132,6 +132,28 @@ std::vector<std::pair<size_t, std::string>> ParamMap::term_parameter_names(const
   return out;
 }
 
+TrainWindow window_at(const TrajectorySet& t, long start, long length, const TrainOptions& o, size_t dataset) {
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  TrainWindow w;
+  w.dataset = dataset;
+  w.start = observe_at(t, start, o.velocity_window, o.speed_window);
+  if (w.start.ids.empty()) return w;
+  w.framerate = t.framerate;
+  std::vector<std::pair<long, size_t>> order;  // (recorded id, index in start)
+  for (size_t k = 0; k < w.start.ids.size(); ++k) order.emplace_back(w.start.ids[k], k);
+  std::sort(order.begin(), order.end());
+  for (long k = 1; k <= length; ++k) {
+    std::vector<Vec2> row(w.start.ids.size(), Vec2(nan, nan));
+    auto [b, e] = t.frame(start + k);
+    for (auto p = b; p != e; ++p) {
+      auto it = std::lower_bound(order.begin(), order.end(), std::make_pair(p->id, size_t{0}));
+      if (it != order.end() && it->first == p->id) row[it->second] = Vec2(p->x, p->y);
+    }
+    w.seen.push_back(std::move(row));
+  }
+  return w;
+}
+
 void make_windows(const std::vector<TrainDataset>& data, const TrainOptions& o, std::vector<TrainWindow>& train,
                   std::vector<TrainWindow>& validation) {
   if (!(o.validation_fraction > 0 && o.validation_fraction < 1))
@@ -139,7 +161,6 @@ void make_windows(const std::vector<TrainDataset>& data, const TrainOptions& o, 
   if (!(o.window > 0 && o.stride > 0)) throw Error("window and stride must be > 0 s");
   train.clear();
   validation.clear();
-  const double nan = std::numeric_limits<double>::quiet_NaN();
   for (size_t d = 0; d < data.size(); ++d)
     for (const TrajectorySet& t : data[d].recordings) {
       const long history = std::lround(std::max(o.velocity_window, o.speed_window) * t.framerate);
@@ -157,23 +178,8 @@ void make_windows(const std::vector<TrainDataset>& data, const TrainOptions& o, 
       for (size_t i = 0; i < starts.size(); ++i) {
         const bool is_val = i >= n_train;
         if (!is_val && starts[i] + length > val_start) continue;
-        TrainWindow w;
-        w.dataset = d;
-        w.start = observe_at(t, starts[i], o.velocity_window, o.speed_window);
+        TrainWindow w = window_at(t, starts[i], length, o, d);
         if (w.start.ids.empty()) continue;
-        w.framerate = t.framerate;
-        std::vector<std::pair<long, size_t>> order;  // (recorded id, index in start)
-        for (size_t k = 0; k < w.start.ids.size(); ++k) order.emplace_back(w.start.ids[k], k);
-        std::sort(order.begin(), order.end());
-        for (long k = 1; k <= length; ++k) {
-          std::vector<Vec2> row(w.start.ids.size(), Vec2(nan, nan));
-          auto [b, e] = t.frame(starts[i] + k);
-          for (auto p = b; p != e; ++p) {
-            auto it = std::lower_bound(order.begin(), order.end(), std::make_pair(p->id, size_t{0}));
-            if (it != order.end() && it->first == p->id) row[it->second] = Vec2(p->x, p->y);
-          }
-          w.seen.push_back(std::move(row));
-        }
         (is_val ? validation : train).push_back(std::move(w));
       }
     }
@@ -656,13 +662,6 @@ TrainResult train_on_windows(const std::vector<ScenarioDef>& scenarios, const st
   res.terms = s.best.terms;
   return res;
 }
-
-namespace {
-std::string resolve_path(const std::string& base, const std::string& p) {
-  if (base.empty() || p.empty() || p[0] == '/') return p;
-  return base + "/" + p;
-}
-}  // namespace
 
 void parse_train_options(const JsonReader& op, TrainOptions& o) {
   op.require_object();

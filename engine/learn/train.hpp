@@ -115,6 +115,10 @@ struct TrainWindow {
   size_t frames() const { return fields.empty() ? seen.size() : fields.size(); }
 };
 
+// The window of recording t starting at frame `start` and seen for `length` frames after it
+// (start.ids empty when nobody is recorded at `start` with enough history).
+TrainWindow window_at(const TrajectorySet& t, long start, long length, const TrainOptions& o, size_t dataset = 0);
+
 // Training and validation windows of the datasets (validation: the last share of each
 // recording; training windows that would overlap it in time are left out).
 void make_windows(const std::vector<TrainDataset>& data, const TrainOptions& o, std::vector<TrainWindow>& train,

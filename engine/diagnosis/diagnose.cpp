@@ -1,0 +1,731 @@
+#include "engine/diagnosis/diagnose.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <map>
+#include <sstream>
+
+#include "engine/core/input.hpp"
+#include "engine/core/parallel.hpp"
+#include "engine/io/render.hpp"
+
+namespace crowdmpm {
+namespace {
+
+const double kNan = std::numeric_limits<double>::quiet_NaN();
+
+// Report names of the laws (the and DESIGN.md's vocabulary) and back.
+std::string report_type(const TermLaw* law) {
+  const std::string t = law->type();
+  if (t == "uniform") return "drift";
+  if (t == "radial") return "attractor";
+  return t;
+}
+
+// Report names of a term's parameters: {x, y, radius}, {ax, ay}, {xmin, ymin, xmax, ymax, factor}...
+json report_params(const Term& t) {
+  static const std::map<std::string, std::string> rename = {
+      {"center.x", "x"},     {"center.y", "y"},     {"acceleration.x", "ax"}, {"acceleration.y", "ay"},
+      {"min.x", "xmin"},     {"min.y", "ymin"},     {"max.x", "xmax"},        {"max.y", "ymax"},
+      {"from.x", "x0"},      {"from.y", "y0"},      {"to.x", "x1"},           {"to.y", "y1"}};
+  json p = json::object();
+  const auto names = t.parameter_names();
+  for (size_t k = 0; k < names.size(); ++k) {
+    auto it = rename.find(names[k]);
+    const double v = t.params[k];
+    p[it == rename.end() ? names[k] : it->second] = std::abs(v) >= 1e300 ? json(nullptr) : json(v);
+  }
+  return p;
+}
+
+std::string num(double v, int digits = 2) {
+  char b[64];
+  std::snprintf(b, sizeof b, "%.*f", digits, v);
+  return b;
+}
+std::string point(const Vec2& p) { return "(" + num(p.x(), 1) + ", " + num(p.y(), 1) + ")"; }
+
+// ---------------------------------------------------------------------------------------------
+// Held-out and fitting windows.
+
+struct Split {
+  long train_from = 0, train_to = 0, heldout_from = 0, heldout_to = 0;  // frames
+  std::vector<TrainWindow> fit, fit_validation, heldout;
+};
+
+TrainOptions fit_options(const DiagnoseOptions& d) {
+  TrainOptions o;
+  o.window = d.window;
+  o.stride = d.stride;
+  o.velocity_window = d.residual.velocity_window;
+  o.speed_window = d.residual.speed_window;
+  o.desired_speed = d.residual.desired_speed;
+  o.params = d.params;
+  o.learn_scalars = !d.params.empty();
+  o.learn_network = false;
+  o.iterations = d.iterations;
+  o.learning_rate = d.learning_rate;
+  o.batch = 4;
+  o.eval_every = 5;
+  o.patience = 4;
+  o.lr_decay = 0.5;
+  o.threads = d.threads;
+  o.seed = d.seed;
+  return o;
+}
+
+Split split_recording(const TrajectorySet& t, const DiagnoseOptions& d) {
+  if (!(d.train_share > 0.2 && d.train_share < 0.9)) throw Error("diagnosis: train_share must be in (0.2, 0.9)");
+  if (!(d.window > 0 && d.stride > 0)) throw Error("diagnosis: window and stride must be > 0 s");
+  Split s;
+  const TrainOptions o = fit_options(d);
+  s.train_from = t.frame_min();
+  s.heldout_to = t.frame_max();
+  s.train_to = s.train_from + std::lround(d.train_share * static_cast<double>(s.heldout_to - s.train_from));
+  s.heldout_from = s.train_to;
+  const long length = std::lround(d.window * t.framerate), stride = std::max(1L, std::lround(d.stride * t.framerate));
+  const long history = std::lround(std::max(o.velocity_window, o.speed_window) * t.framerate);
+  std::vector<TrainWindow> fit;
+  for (long f = t.skip_gap(s.train_from + history, stride); f + length <= s.train_to; f = t.skip_gap(f + stride, stride)) {
+    TrainWindow w = window_at(t, f, length, o);
+    if (!w.start.ids.empty()) fit.push_back(std::move(w));
+  }
+  for (long f = t.skip_gap(s.heldout_from, stride); f + length <= s.heldout_to; f = t.skip_gap(f + stride, stride)) {
+    TrainWindow w = window_at(t, f, length, o);
+    if (!w.start.ids.empty()) s.heldout.push_back(std::move(w));
+  }
+  // Early stopping of every fit looks at the training part's last quarter (windows that do not
+  // overlap the ones it fits), never at the held-out part.
+  const size_t n_val = std::max<size_t>(1, fit.size() / 4);
+  if (fit.size() < n_val + 2 || s.heldout.size() < 2)
+    throw Error(t.source + ": too short to diagnose (" + std::to_string(fit.size()) + " fitting and " +
+                std::to_string(s.heldout.size()) + " held-out windows of " + num(d.window, 1) +
+                " s; needs at least 3 and 2): give a longer recording or shorter windows");
+  const long val_start = fit[fit.size() - n_val].start.frame;
+  for (size_t i = 0; i < fit.size(); ++i) {
+    if (i >= fit.size() - n_val) s.fit_validation.push_back(std::move(fit[i]));
+    else if (fit[i].start.frame + length <= val_start) s.fit.push_back(std::move(fit[i]));
+  }
+  if (s.fit.empty()) throw Error(t.source + ": too short to diagnose: no fitting window before the early-stopping ones");
+  return s;
+}
+
+// Squared position errors of every person of every window (summed over the window's frames).
+struct WindowErrors {
+  std::vector<double> sq;
+  std::vector<long> n;
+  bool failed = false;
+};
+
+std::vector<WindowErrors> rollout_errors(const ScenarioDef& s, const Model& m, const std::vector<TrainWindow>& ws,
+                                         DesiredSpeed ds, int threads) {
+  const ScenarioDef windowed = window_scenario(s, false);
+  std::vector<WindowErrors> out(ws.size());
+  ThreadPool pool(std::max(1, threads));
+  pool.parallel_for(ws.size(), [&](size_t b, size_t e) {
+    for (size_t i = b; i < e; ++i) {
+      const TrainWindow& tw = ws[i];
+      WindowErrors& we = out[i];
+      we.sq.assign(tw.start.ids.size(), 0);
+      we.n.assign(tw.start.ids.size(), 0);
+      try {
+        WindowSim sim = start_window(windowed, m, tw.start, WindowOptions{1, ds});
+        long done = 0;
+        for (size_t k = 0; k < tw.seen.size(); ++k) {
+          const long step = std::lround(static_cast<double>(k + 1) / tw.framerate / windowed.dt);
+          sim.sim->run_steps(step - done);
+          done = step;
+          const World& w = sim.sim->world();
+          for (size_t a = 0; a < sim.ids.size(); ++a) {
+            if (!sim.ids[a] || !tw.seen[k][a].allFinite()) continue;
+            const long idx = w.index_of(sim.ids[a]);
+            if (idx < 0) continue;
+            we.sq[a] += (w.x[static_cast<size_t>(idx)] - tw.seen[k][a]).squaredNorm();
+            we.n[a] += 1;
+          }
+        }
+      } catch (const Error&) {
+        we.failed = true;
+      }
+    }
+  }, 1);
+  return out;
+}
+
+// Who of each window passes within `radius` of `center` (everyone when radius < 0).
+using Membership = std::vector<std::vector<char>>;
+Membership members(const std::vector<TrainWindow>& ws, const Vec2& center, double radius) {
+  Membership m(ws.size());
+  for (size_t i = 0; i < ws.size(); ++i) {
+    const TrainWindow& tw = ws[i];
+    m[i].assign(tw.start.ids.size(), radius < 0);
+    if (radius < 0) continue;
+    for (size_t a = 0; a < tw.start.ids.size(); ++a) {
+      bool in = (tw.start.x[a] - center).norm() <= radius;
+      for (size_t k = 0; k < tw.seen.size() && !in; ++k)
+        in = tw.seen[k][a].allFinite() && (tw.seen[k][a] - center).norm() <= radius;
+      m[i][a] = in;
+    }
+  }
+  return m;
+}
+
+// Errors per recorded person over the held-out windows they are in (a person is the unit of
+// the comparisons: the windows overlap and one person's errors in them are not independent).
+struct ErrorStats {
+  double rms = kNan;
+  std::map<long, std::pair<double, double>> person;  // id -> (sum of squared errors, samples)
+  bool failed = false;  // a simulation failed on some window
+};
+ErrorStats stats_of(const std::vector<WindowErrors>& e, const std::vector<TrainWindow>& ws, const Membership& m) {
+  ErrorStats s;
+  double sq = 0, n = 0;
+  for (size_t i = 0; i < e.size(); ++i) {
+    s.failed = s.failed || e[i].failed;
+    for (size_t a = 0; a < e[i].sq.size(); ++a)
+      if (m[i][a] && e[i].n[a] > 0) {
+        auto& p = s.person[ws[i].start.ids[a]];
+        p.first += e[i].sq[a];
+        p.second += static_cast<double>(e[i].n[a]);
+        sq += e[i].sq[a];
+        n += static_cast<double>(e[i].n[a]);
+      }
+  }
+  if (n > 0) s.rms = std::sqrt(sq / n);
+  return s;
+}
+
+struct Comparison {
+  double gain = 0, z = 0, score_before = 0, score_after = 0;
+};
+// Paired comparison over people (mean squared error of each, before minus after, in standard
+// errors), and the information criterion n ln(MSE) + k ln(n) with n the people compared.
+Comparison compare(const ErrorStats& before, const ErrorStats& after, size_t k_before, size_t k_after) {
+  Comparison c;
+  c.score_after = std::numeric_limits<double>::infinity();
+  if (after.failed || !(before.rms > 0) || !std::isfinite(after.rms)) {
+    c.gain = -1;
+    return c;
+  }
+  std::vector<double> d;
+  for (const auto& [id, b] : before.person) {
+    auto it = after.person.find(id);
+    if (it == after.person.end() || !(b.second > 0) || !(it->second.second > 0)) continue;
+    d.push_back(b.first / b.second - it->second.first / it->second.second);
+  }
+  c.gain = 1 - after.rms / before.rms;
+  if (d.size() < 2) return c;
+  double mean = 0, var = 0;
+  for (double v : d) mean += v;
+  mean /= static_cast<double>(d.size());
+  for (double v : d) var += (v - mean) * (v - mean);
+  var /= static_cast<double>(d.size() - 1);
+  const double n = static_cast<double>(d.size());
+  c.z = var > 0 ? mean / std::sqrt(var / n) : (mean > 0 ? 1e9 : 0);
+  c.score_before = n * std::log(before.rms * before.rms) + static_cast<double>(k_before) * std::log(n);
+  c.score_after = n * std::log(after.rms * after.rms) + static_cast<double>(k_after) * std::log(n);
+  return c;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Candidates.
+
+Term make_term(const json& j) {
+  const json copy = j;
+  return Term::parse(JsonReader(copy, "candidate"), {});
+}
+
+double clampd(double v, double lo, double hi) { return std::max(lo, std::min(hi, v)); }
+
+// The candidates of one region, initialised from what its residuals show (DESIGN.md section 6,
+// step 3). drift is initialised from the whole venue's mean residual.
+std::vector<Term> initial_candidates(const Cluster& c, const Vec2& global_mean, const Model& m,
+                                     const std::vector<std::string>& types) {
+  const double tau = m.params.tau;
+  const double range = std::max(2.0, 2.5 * c.radius);
+  std::vector<Term> out;
+  for (const std::string& type : types) {
+    json j;
+    if (type == "obstacle") {
+      // The rim's stiffness stays at its default (a solid); where it is, how large and how early
+      // people turn are fitted.
+      j = {{"type", "obstacle"}, {"center", {c.hole.x(), c.hole.y()}}, {"radius", 0.4}, {"steer", 1},
+           {"learn", {"center", "radius", "steer"}}};
+    } else if (type == "drift") {
+      const Vec2 a = global_mean / tau;
+      j = {{"type", "drift"}, {"acceleration", {clampd(a.x(), -5, 5), clampd(a.y(), -5, 5)}}, {"learn", {"acceleration"}}};
+    } else if (type == "attractor") {
+      j = {{"type", "attractor"}, {"center", {c.center.x(), c.center.y()}}, {"strength", clampd(-c.radial / tau, -5, 5)},
+           {"range", range}, {"learn", {"center", "strength"}}};
+    } else if (type == "vortex") {
+      j = {{"type", "vortex"}, {"center", {c.center.x(), c.center.y()}}, {"strength", clampd(c.tangential / tau, -5, 5)},
+           {"range", range}, {"learn", {"center", "strength"}}};
+    } else if (type == "slow_zone") {
+      j = {{"type", "slow_zone"}, {"min", {c.lo.x(), c.lo.y()}}, {"max", {c.hi.x(), c.hi.y()}}, {"factor", 0.7},
+           {"learn", {"min", "max", "factor"}}};
+    } else {
+      continue;
+    }
+    out.push_back(make_term(j));
+  }
+  return out;
+}
+
+// The people a region's candidates are judged on: those passing within this distance of its
+// centre (a cluster spans the disturbed flow around an effect; the people it deflects or slows
+// pass nearer its centre).
+double evaluation_radius(double cluster_radius) { return std::max(1.0, 0.5 * cluster_radius); }
+double evaluation_radius(const Cluster& c) { return evaluation_radius(c.radius); }
+
+struct FitResult {
+  Model model;
+  std::vector<Term> terms;
+  bool ok = false;
+  std::string error;
+};
+FitResult fit(const ScenarioDef& scenario, const std::vector<Term>& terms, const Model& start, const Split& sp,
+              const DiagnoseOptions& d) {
+  FitResult f;
+  ScenarioDef s = scenario;
+  s.terms = terms;
+  try {
+    const TrainResult r = train_on_windows({s}, sp.fit, sp.fit_validation, start, fit_options(d));
+    f.model = r.model;
+    f.terms = r.terms.empty() ? terms : r.terms[0];
+    f.ok = true;
+  } catch (const Error& e) {
+    f.error = e.what();
+  }
+  return f;
+}
+
+ScenarioDef with_terms(const ScenarioDef& s, const std::vector<Term>& terms) {
+  ScenarioDef out = s;
+  out.terms = terms;
+  return out;
+}
+
+// The significant regions of one round: residuals of (scenario, model) on the training part
+// and the null's largest cluster statistics.
+struct Localisation {
+  ResidualSet set;
+  ResidualMap map;
+  std::vector<Cluster> clusters;
+  Vec2 global_mean = Vec2::Zero();
+};
+Localisation localise(const ScenarioDef& s, const Model& m, const TrajectorySet& t, const Split& sp,
+                      const DiagnoseOptions& d, double noise, int round, bool with_null) {
+  Localisation l;
+  l.set = recorded_residuals(s, m, t, sp.train_from, sp.train_to, d.residual);
+  l.map = bin_residuals(l.set, s.geo, d.residual);
+  l.clusters = find_clusters(l.map, l.set, d.residual);
+  for (const auto& r : l.set.velocity) l.global_mean += r.r;
+  if (!l.set.velocity.empty()) l.global_mean /= static_cast<double>(l.set.velocity.size());
+  if (!with_null || l.clusters.empty()) return l;
+  std::vector<double> maxima;
+  for (int k = 0; k < d.null_replicates; ++k) {
+    const ResidualSet ns = null_residuals(s, m, t, sp.train_from, sp.train_to, d.residual, noise,
+                                          d.seed + 1000 * static_cast<uint64_t>(round) + static_cast<uint64_t>(k));
+    const ResidualMap nm = bin_residuals(ns, s.geo, d.residual);
+    const auto nc = find_clusters(nm, ns, d.residual);
+    maxima.push_back(nc.empty() ? 0.0 : nc.front().statistic);
+  }
+  assess_clusters(l.clusters, maxima, d.residual);
+  return l;
+}
+
+std::string explain(const DiagnoseOptions& o, const DiagnosisResult& r);
+
+}  // namespace
+
+const std::vector<std::string>& diagnosis_candidates() {
+  static const std::vector<std::string> c = {"obstacle", "drift", "attractor", "vortex", "slow_zone"};
+  return c;
+}
+
+DiagnoseJob parse_diagnose_job(const json& request, const std::string& base_dir) {
+  JsonReader r(request, "");
+  r.require_object();
+  r.allow_only({"scenario", "trajectories", "model", "options", "input"});
+  DiagnoseJob job;
+  const InputPolicy input = input_policy(r);
+  job.scenario_path = resolve_path(base_dir, r.string("scenario", std::nullopt));
+  job.trajectories_path = resolve_path(base_dir, r.string("trajectories", std::nullopt));
+  job.scenario = ScenarioDef::load(job.scenario_path, input);
+  job.recording = TrajectorySet::read(job.trajectories_path, 0, input);
+  job.model = r.has("model") ? Model::load(resolve_path(base_dir, r.string("model", std::nullopt)), input)
+                             : job.scenario.model_or_default();
+  if (job.model.material == MaterialKind::Elastic) r.fail_at("model", "diagnosis covers the crowd, fluid and social_force models, not elastic");
+  DiagnoseOptions& o = job.options;
+  if (auto op = r.get("options")) {
+    op->require_object();
+    op->allow_only({"train_share", "window", "stride", "horizon", "residual_stride", "cell", "time_bin", "z_threshold", "source_margin",
+                    "null_replicates", "alpha", "max_terms", "min_gain", "min_gain_z", "candidates", "params",
+                    "iterations", "learning_rate", "threads", "seed", "desired_speed"});
+    o.train_share = op->in_range("train_share", 0.2, 0.9, o.train_share);
+    o.window = op->in_range("window", 0.2, 30, o.window);
+    o.stride = op->in_range("stride", 0.05, 30, o.stride);
+    o.residual.horizon = op->in_range("horizon", 0.2, 10, o.residual.horizon);
+    o.residual.stride = op->in_range("residual_stride", 0.05, 10, o.residual.stride);
+    o.residual.cell = op->in_range("cell", 0.1, 10, o.residual.cell);
+    o.residual.time_bin = op->in_range("time_bin", 0.5, 600, o.residual.time_bin);
+    o.residual.source_margin = op->in_range("source_margin", 0, 100, o.residual.source_margin);
+    o.residual.z_threshold = op->in_range("z_threshold", 1, 20, o.residual.z_threshold);
+    o.null_replicates = static_cast<int>(op->in_range("null_replicates", 1, 100, o.null_replicates));
+    o.alpha = op->in_range("alpha", 1e-9, 0.5, o.alpha);
+    o.max_terms = static_cast<int>(op->in_range("max_terms", 0, 3, o.max_terms));
+    o.min_gain = op->in_range("min_gain", 0, 1, o.min_gain);
+    o.min_gain_z = op->in_range("min_gain_z", 0, 100, o.min_gain_z);
+    o.iterations = static_cast<int>(op->in_range("iterations", 1, 10000, o.iterations));
+    o.learning_rate = op->in_range("learning_rate", 1e-6, 10, o.learning_rate);
+    o.threads = static_cast<int>(op->in_range("threads", 1, 256, o.threads));
+    o.residual.threads = o.threads;
+    o.seed = static_cast<uint64_t>(op->in_range("seed", 0, 9e15, static_cast<double>(o.seed)));
+    const std::string ds = op->one_of("desired_speed", {"scenario", "observed", "free"}, std::string("free"));
+    o.residual.desired_speed = ds == "scenario" ? DesiredSpeed::Scenario : ds == "observed" ? DesiredSpeed::Observed : DesiredSpeed::Free;
+    if (auto c = op->get("candidates")) {
+      o.candidates.clear();
+      for (size_t i = 0; i < c->size(); ++i) {
+        const std::string name = c->item(i).as_string();
+        const auto& known = diagnosis_candidates();
+        if (std::find(known.begin(), known.end(), name) == known.end()) {
+          std::string list;
+          for (const auto& k : known) list += (list.empty() ? "" : ", ") + k;
+          c->item(i).fail("unknown candidate \"" + name + "\" (known: " + list + ")");
+        }
+        o.candidates.push_back(name);
+      }
+    }
+    if (auto p = op->get("params")) {
+      o.params_given = true;
+      for (size_t i = 0; i < p->size(); ++i) o.params.push_back(p->item(i).as_string());
+    }
+  }
+  if (!o.params_given) {
+    const std::vector<std::string> learnable = learnable_params(job.model);
+    for (const char* name : {"v0_scale", "tau", "time_gap"})
+      if (std::find(learnable.begin(), learnable.end(), name) != learnable.end()) o.params.push_back(name);
+  }
+  // Unknown or unlearnable parameter names fail here, naming them.
+  const ParamMap check(Fitted::of(job.model, {job.scenario}), o.params, false, !o.params.empty());
+  (void)check;
+  return job;
+}
+
+DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& progress) {
+  const DiagnoseOptions& d = job.options;
+  const TrajectorySet& t = job.recording;
+  auto say = [&](const std::string& s) {
+    if (progress) progress(s);
+  };
+  DiagnosisResult res;
+  const Split sp = split_recording(t, d);
+  res.train_windows = static_cast<long>(sp.fit.size() + sp.fit_validation.size());
+  res.heldout_windows = static_cast<long>(sp.heldout.size());
+  res.train_end = static_cast<double>(sp.train_to) / t.framerate;
+  res.heldout_start = static_cast<double>(sp.heldout_from) / t.framerate;
+  res.heldout_end = static_cast<double>(sp.heldout_to) / t.framerate;
+  res.tracking_noise = tracking_noise(t);
+  say("tracking noise " + num(res.tracking_noise, 3) + " m; " + std::to_string(res.train_windows) + " fitting, " +
+      std::to_string(res.heldout_windows) + " held-out windows");
+
+  // 1. The baseline: the user's venue and model, its material refitted on the training part.
+  Model model = job.model;
+  std::vector<Term> terms = job.scenario.terms;
+  if (!d.params.empty()) {
+    const FitResult b = fit(job.scenario, terms, model, sp, d);
+    if (!b.ok) throw Error("diagnosis: the baseline could not be fitted: " + b.error);
+    model = b.model;
+    terms = b.terms;
+  }
+  for (Term& term : terms) term.learn.assign(term.params.size(), 0);
+  res.baseline = model;
+  const std::vector<std::string> types = d.candidates.empty() ? diagnosis_candidates() : d.candidates;
+  const DesiredSpeed ds = d.residual.desired_speed;
+  const Membership everyone = members(sp.heldout, Vec2::Zero(), -1);
+  std::vector<WindowErrors> base_err = rollout_errors(with_terms(job.scenario, terms), model, sp.heldout, ds, d.threads);
+  res.heldout_before = stats_of(base_err, sp.heldout, everyone).rms;
+  say("baseline fitted: held-out error " + num(res.heldout_before, 3) + " m");
+
+  Vec2 first_center = Vec2::Zero();
+  double first_radius = -1;
+  bool have_after = false;
+  for (int round = 0; round < std::max(1, d.max_terms); ++round) {
+    const ScenarioDef current = with_terms(job.scenario, terms);
+    Localisation loc = localise(current, model, t, sp, d, std::max(res.tracking_noise, 0.005), round, true);
+    if (round == 0) res.residual_before = loc.map;
+    else {
+      res.residual_after = loc.map;
+      have_after = true;
+    }
+    std::vector<const Cluster*> significant;
+    for (const Cluster& c : loc.clusters) {
+      Region reg{c.center, c.radius, c.t_start, c.t_end, c.significance, c.statistic, round};
+      res.regions.push_back(reg);
+      if (c.significance < d.alpha && static_cast<int>(significant.size()) < d.max_regions) significant.push_back(&c);
+    }
+    say("round " + std::to_string(round + 1) + ": " + std::to_string(loc.clusters.size()) + " residual clusters, " +
+        std::to_string(significant.size()) + " significant");
+    if (significant.empty() || round >= d.max_terms) break;
+    const ErrorStats base_global = stats_of(base_err, sp.heldout, everyone);
+    std::optional<size_t> best;
+    std::vector<WindowErrors> best_err;
+    FitResult best_fit;
+    for (const Cluster* c : significant) {
+      const int region_index = static_cast<int>(c - loc.clusters.data()) +
+                               static_cast<int>(res.regions.size() - loc.clusters.size());
+      const Membership near = members(sp.heldout, c->center, evaluation_radius(*c));
+      const ErrorStats base_region = stats_of(base_err, sp.heldout, near);
+      for (const Term& cand : initial_candidates(*c, loc.global_mean, model, types)) {
+        Hypothesis h;
+        h.round = round;
+        h.region = region_index;
+        h.baseline_error = base_region.rms;
+        std::vector<Term> trial = terms;
+        trial.push_back(cand);
+        say("  fitting " + report_type(cand.law) + " at " + point(c->center));
+        FitResult f = fit(job.scenario, trial, model, sp, d);
+        if (!f.ok) {
+          h.term = cand;
+          h.why = "fit failed: " + f.error;
+          h.heldout_error = h.heldout_error_global = kNan;
+          res.hypotheses.push_back(h);
+          continue;
+        }
+        h.term = f.terms.back();
+        h.term.learn.assign(h.term.params.size(), 0);
+        f.terms.back() = h.term;
+        std::vector<WindowErrors> err = rollout_errors(with_terms(job.scenario, f.terms), f.model, sp.heldout, ds, d.threads);
+        const ErrorStats region = stats_of(err, sp.heldout, near), global = stats_of(err, sp.heldout, everyone);
+        h.heldout_error = region.rms;
+        h.heldout_error_global = global.rms;
+        const Comparison cmp = compare(base_region, region, 0, cand.learned_count());
+        const Comparison cmp_global = compare(base_global, global, 0, 0);
+        h.gain = cmp.gain;
+        h.gain_z = cmp.z;
+        h.score = cmp.score_after;
+        h.baseline_score = cmp.score_before;
+        std::string why;
+        if (!(cmp.gain >= d.min_gain)) why = "held-out gain " + num(100 * cmp.gain, 1) + "% below " + num(100 * d.min_gain, 0) + "%";
+        else if (!(cmp.z >= d.min_gain_z)) why = "gain " + num(cmp.z, 1) + " standard errors, below " + num(d.min_gain_z, 1);
+        else if (!(cmp.score_after < cmp.score_before)) why = "information criterion does not fall";
+        else if (cmp_global.gain < -0.01) why = "held-out error of everyone rises by " + num(-100 * cmp_global.gain, 1) + "%";
+        h.why = why.empty() ? "held-out gain " + num(100 * cmp.gain, 1) + "% (" + num(cmp.z, 1) + " standard errors)" : why;
+        const bool passes = why.empty();
+        say("    " + report_type(cand.law) + ": region " + num(base_region.rms, 3) + " -> " + num(region.rms, 3) + " m, " + h.why);
+        res.hypotheses.push_back(h);
+        if (passes && (!best || h.score - h.baseline_score < res.hypotheses[*best].score - res.hypotheses[*best].baseline_score)) {
+          best = res.hypotheses.size() - 1;
+          best_err = std::move(err);
+          best_fit = f;
+        }
+      }
+    }
+    if (!best) break;
+    Hypothesis& h = res.hypotheses[*best];
+    h.accepted = true;
+    terms = best_fit.terms;
+    model = best_fit.model;
+    base_err = std::move(best_err);
+    res.terms.push_back(h.term);
+    if (first_radius < 0) {
+      const Region& reg = res.regions[static_cast<size_t>(h.region)];
+      first_center = reg.center;
+      first_radius = evaluation_radius(reg.radius);
+    }
+    say("accepted " + report_type(h.term.law) + ": " + h.why);
+  }
+  res.model = model;
+  if (!res.terms.empty() && !have_after) {
+    const ScenarioDef current = with_terms(job.scenario, terms);
+    res.residual_after = localise(current, model, t, sp, d, res.tracking_noise, d.max_terms, false).map;
+  } else if (res.terms.empty()) {
+    res.residual_after = res.residual_before;
+  }
+  res.region_center = first_center;
+  res.region_radius = first_radius;
+  const Membership region = res.terms.empty() ? everyone : members(sp.heldout, first_center, first_radius);
+  const std::vector<WindowErrors> before = rollout_errors(with_terms(job.scenario, job.scenario.terms), res.baseline,
+                                                          sp.heldout, ds, d.threads);
+  res.region_before = stats_of(before, sp.heldout, region).rms;
+  res.region_after = stats_of(base_err, sp.heldout, region).rms;
+  res.heldout_after = stats_of(base_err, sp.heldout, everyone).rms;
+  res.explanation = explain(d, res);
+  return res;
+}
+
+// ---------------------------------------------------------------------------------------------
+// The report.
+
+namespace {
+std::string describe(const Term& t) {
+  const std::string type = report_type(t.law);
+  const auto& p = t.params;
+  if (type == "obstacle") return "an obstacle of radius " + num(p[2]) + " m at " + point(Vec2(p[0], p[1]));
+  if (type == "drift") return "a uniform drift of (" + num(p[0]) + ", " + num(p[1]) + ") m/s^2";
+  if (type == "attractor")
+    return std::string(p[2] >= 0 ? "an attractor" : "a repeller") + " at " + point(Vec2(p[0], p[1])) + " of strength " +
+           num(std::abs(p[2])) + " m/s^2 within " + num(p[3], 1) + " m";
+  if (type == "vortex")
+    return std::string("a ") + (p[2] >= 0 ? "counter-clockwise" : "clockwise") + " vortex at " + point(Vec2(p[0], p[1])) +
+           " of strength " + num(std::abs(p[2])) + " m/s^2 within " + num(p[3], 1) + " m";
+  if (type == "slow_zone")
+    return "a slow zone [" + num(p[0], 1) + ", " + num(p[2], 1) + "] x [" + num(p[1], 1) + ", " + num(p[3], 1) +
+           "] m where the desired speed is " + num(p[4]) + " times its own";
+  return "a " + type + " term";
+}
+
+std::string what_it_shows(const Term& t) {
+  const std::string type = report_type(t.law);
+  const auto& p = t.params;
+  if (type == "obstacle") return "Flow slows and splits around " + point(Vec2(p[0], p[1])) + "; ";
+  if (type == "drift") return "Everyone is pushed the same way; ";
+  if (type == "attractor") return std::string("People are ") + (p[2] >= 0 ? "drawn towards " : "pushed away from ") + point(Vec2(p[0], p[1])) + "; ";
+  if (type == "vortex") return "Flow turns around " + point(Vec2(p[0], p[1])) + "; ";
+  if (type == "slow_zone") return "People walk slower in part of the venue; ";
+  return "";
+}
+
+std::string explain(const DiagnoseOptions& o, const DiagnosisResult& r) {
+  std::string text;
+  if (!r.terms.empty()) {
+    text = what_it_shows(r.terms[0]) + describe(r.terms[0]) + " explains it; held-out error " + num(r.region_before) +
+           " -> " + num(r.region_after) + " m for the people passing there (everyone: " + num(r.heldout_before) + " -> " +
+           num(r.heldout_after) + " m).";
+    for (size_t k = 1; k < r.terms.size(); ++k) text += " Then " + describe(r.terms[k]) + ".";
+  } else {
+    const Region* strongest = nullptr;
+    for (const Region& g : r.regions)
+      if (g.significance < o.alpha && (!strongest || g.statistic > strongest->statistic)) strongest = &g;
+    if (!strongest)
+      text = "No missing physics found: the fitted model and the recording differ no more than the model with tracking noise does (held-out error " +
+             num(r.heldout_before) + " m).";
+    else
+      text = "Unexplained discrepancy at " + point(strongest->center) + " (radius " + num(strongest->radius, 1) + " m, " +
+             num(strongest->t_start, 0) + "-" + num(strongest->t_end, 0) + " s, p = " + num(strongest->significance, 3) +
+             "): no candidate term lowered the held-out error clearly (held-out error " + num(r.heldout_before) + " m).";
+  }
+  return text;
+}
+
+GridVelocityField residual_field(const ResidualMap& m, int min_people) {
+  GridVelocityField f;
+  f.origin = m.origin + Vec2(0.5 * m.cell, 0.5 * m.cell);
+  f.dx = m.cell;
+  f.nx = m.nx;
+  f.ny = m.ny;
+  f.velocity = m.mean;
+  f.mask.assign(m.mean.size(), 0);
+  for (size_t c = 0; c < m.mean.size(); ++c) f.mask[c] = m.people[c] >= min_people ? 1 : 0;
+  return f;
+}
+
+std::string error_unit(const DiagnoseOptions& o) {
+  return "m: root-mean-square position error over " + num(o.window, 1) + " s rollouts from the recorded state, held-out part";
+}
+}  // namespace
+
+json diagnosis_json(const DiagnoseJob& job, const DiagnosisResult& r) {
+  json verdict;
+  if (!r.terms.empty()) {
+    verdict = {{"type", report_type(r.terms[0].law)}, {"params", report_params(r.terms[0])}};
+  } else {
+    verdict = {{"type", "none"}, {"params", json::object()}};
+  }
+  verdict["heldout_error_before"] = r.region_before;
+  verdict["heldout_error_after"] = r.region_after;
+  verdict["heldout_error_global_before"] = r.heldout_before;
+  verdict["heldout_error_global_after"] = r.heldout_after;
+  verdict["error_unit"] = error_unit(job.options) +
+                          (r.terms.empty() ? ", everyone"
+                                           : ", people passing within " + num(r.region_radius, 1) + " m of " + point(r.region_center) +
+                                                 ", the first term's region (global figures beside)");
+  verdict["explanation"] = r.explanation;
+  json regions = json::array();
+  for (const Region& g : r.regions)
+    regions.push_back({{"center", {g.center.x(), g.center.y()}}, {"radius", g.radius}, {"t_start", g.t_start},
+                       {"t_end", g.t_end}, {"significance", g.significance}, {"statistic", g.statistic}, {"round", g.round + 1}});
+  json hyps = json::array();
+  for (const Hypothesis& h : r.hypotheses) {
+    auto fin = [](double v) { return std::isfinite(v) ? json(v) : json(nullptr); };
+    hyps.push_back({{"type", report_type(h.term.law)}, {"params", report_params(h.term)}, {"heldout_error", fin(h.heldout_error)},
+                    {"heldout_error_global", fin(h.heldout_error_global)}, {"baseline_error", fin(h.baseline_error)},
+                    {"score", fin(h.score - h.baseline_score)}, {"gain", fin(h.gain)}, {"gain_z", fin(h.gain_z)},
+                    {"round", h.round + 1}, {"region", h.region}, {"accepted", h.accepted}, {"reason", h.why},
+                    {"term", h.term.to_json()}});
+  }
+  json terms = json::array();
+  for (const Term& t : r.terms) {
+    json j = t.to_json();
+    j["report_type"] = report_type(t.law);
+    j["params"] = report_params(t);
+    terms.push_back(j);
+  }
+  return {{"format", "crowdmpm-diagnosis"},
+          {"version", 1},
+          {"scenario", job.scenario_path},
+          {"trajectories", job.trajectories_path},
+          {"verdict", verdict},
+          {"regions", regions},
+          {"hypotheses", hyps},
+          {"terms", terms},
+          {"score_definition", "n ln(MSE) + k ln(n) of the people passing the region, minus the same of the baseline (lower is better); n: independent (person, window) pairs"},
+          {"tracking_noise_m", r.tracking_noise},
+          {"split", {{"train_end_s", r.train_end}, {"heldout_start_s", r.heldout_start}, {"heldout_end_s", r.heldout_end},
+                     {"train_windows", r.train_windows}, {"heldout_windows", r.heldout_windows}}},
+          {"baseline_model", r.baseline.to_json()}};
+}
+
+void write_diagnosis(const DiagnoseJob& job, const DiagnosisResult& res, const std::string& out_dir) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  fs::create_directories(out_dir, ec);
+  if (ec) throw Error(out_dir + ": cannot create the output folder: " + ec.message());
+  const DiagnosisResult& r = res;
+  const std::string& text = r.explanation;
+  save_json_file(diagnosis_json(job, r), (fs::path(out_dir) / "report.json").string());
+  {
+    std::ofstream f(fs::path(out_dir) / "summary.txt");
+    f << text << "\n";
+    for (const Hypothesis& h : r.hypotheses)
+      f << "  round " << h.round + 1 << ": " << describe(h.term) << ": held-out error " << num(h.baseline_error, 3) << " -> "
+        << num(h.heldout_error, 3) << " m" << (h.accepted ? " (accepted)" : "") << "; " << h.why << "\n";
+    if (!f) throw Error(out_dir + "/summary.txt: cannot write");
+  }
+  const View view = View::fit(job.scenario.geo, 0);
+  double vmax = 0;
+  for (const ResidualMap* m : {&r.residual_before, &r.residual_after})
+    for (size_t c = 0; c < m->mean.size(); ++c)
+      if (m->people[c] >= job.options.residual.min_people) vmax = std::max(vmax, m->mean[c].norm());
+  vmax = vmax > 0 ? vmax : 1;
+  std::vector<std::pair<Vec2, double>> circles;
+  for (const Region& g : r.regions)
+    if (g.round == 0 && g.significance < job.options.alpha) circles.emplace_back(g.center, g.radius);
+  const int mp = job.options.residual.min_people;
+  write_velocity_png((fs::path(out_dir) / "residual_before.png").string(), job.scenario.geo, view,
+                     residual_field(r.residual_before, mp), vmax, "residual velocity, fitted baseline (training part)", 1, circles);
+  std::vector<std::pair<Vec2, double>> found;
+  for (const Term& t : r.terms) {
+    const std::string type = report_type(t.law);
+    if (type == "obstacle") found.emplace_back(Vec2(t.params[0], t.params[1]), t.params[2]);
+    else if (type == "attractor" || type == "vortex") found.emplace_back(Vec2(t.params[0], t.params[1]), std::min(t.params[3], 3.0));
+  }
+  write_velocity_png((fs::path(out_dir) / "residual_after.png").string(), job.scenario.geo, view,
+                     residual_field(r.residual_after, mp), vmax,
+                     r.terms.empty() ? "residual velocity: no term accepted" : "residual velocity with the accepted terms", 1, found);
+  // The venue with the accepted terms and the refitted model, ready to simulate.
+  json sc = ScenarioDef::load_json(job.scenario_path);
+  sc["model"] = r.model.to_json();
+  json forces = json::array();
+  for (const Term& t : job.scenario.terms) forces.push_back(t.to_json());
+  for (const Term& t : r.terms) forces.push_back(t.to_json());
+  sc["forces"] = forces;
+  save_json_file(sc, (fs::path(out_dir) / "scenario.json").string());
+  save_json_file(r.model.to_json(), (fs::path(out_dir) / "model.json").string());
+}
+
+}  // namespace crowdmpm

@@ -1,0 +1,104 @@
+#pragma once
+// Diagnosis of missing physics (DESIGN.md section 6): given the venue a user believes
+// (scenario), a material model and a recording, fit the model on the recording's first part,
+// locate where it and the recording still disagree (residuals.hpp), try the candidate force
+// terms that could explain each significant region (each initialised from the region and
+// fitted through the simulator with gradients), and accept a term only when it lowers the
+// error on the recording's later, held-out part clearly beyond noise. Up to max_terms terms
+// are added greedily; otherwise the verdict is "none". docs/diagnosis.md has the method.
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "engine/diagnosis/residuals.hpp"
+
+namespace crowdmpm {
+
+struct DiagnoseOptions {
+  double train_share = 0.6;   // first share of the recording: fitting and localisation; the rest is held out
+  double window = 3;          // s of each fitting and held-out rollout
+  double stride = 1;          // s between their starts
+  ResidualOptions residual;
+  int null_replicates = 6;
+  double alpha = 0.01;        // a region is significant below this p-value
+  int max_regions = 2;        // regions tried per round, strongest first
+  int max_terms = 3;
+  // A term is accepted when, on the held-out part and among the people passing its region,
+  // the RMS error falls by at least min_gain (share), the paired gain over windows is at least
+  // min_gain_z standard errors, and the information criterion n ln(MSE) + k ln(n) falls.
+  double min_gain = 0.1;
+  double min_gain_z = 3;
+  std::vector<std::string> candidates;  // law types to try; empty: all diagnosis candidates
+  // Material parameters refitted with every term (default: those of v0_scale, tau and time_gap
+  // the model kind learns: the free speed, the relaxation and the speed-headway relation).
+  std::vector<std::string> params;
+  bool params_given = false;
+  int iterations = 60;
+  double learning_rate = 0.05;
+  int threads = 1;
+  uint64_t seed = 1;
+};
+
+// The candidate types diagnosis tries, by their report names (drift, attractor, ...).
+const std::vector<std::string>& diagnosis_candidates();
+
+struct Region {
+  Vec2 center = Vec2::Zero();
+  double radius = 0;
+  double t_start = 0, t_end = 0, significance = 1, statistic = 0;
+  int round = 0;
+};
+
+struct Hypothesis {
+  Term term;
+  int round = 0, region = -1;         // the region it was initialised from (-1: the whole venue)
+  double heldout_error = 0;           // RMS position error of the people passing the region, m
+  double heldout_error_global = 0;    // the same over everyone, m
+  double baseline_error = 0;          // the baseline's regional error it is compared with, m
+  double gain = 0, gain_z = 0, score = 0, baseline_score = 0;
+  bool accepted = false;
+  std::string why;                    // why it was accepted or not
+};
+
+struct DiagnosisResult {
+  Model baseline;                     // the fitted baseline
+  Model model;                        // refitted with the accepted terms
+  std::vector<Term> terms;            // accepted, in order
+  std::vector<Region> regions;
+  std::vector<Hypothesis> hypotheses;
+  double heldout_before = 0, heldout_after = 0;          // global RMS position error, m
+  double region_before = 0, region_after = 0;            // over the people passing the first accepted term's region (global if none)
+  Vec2 region_center = Vec2::Zero();
+  double region_radius = -1;                             // m (-1: everyone)
+  ResidualMap residual_before, residual_after;           // on the training part
+  double tracking_noise = 0;          // m, estimated
+  double train_end = 0, heldout_start = 0, heldout_end = 0;  // s
+  long train_windows = 0, heldout_windows = 0;
+  std::string explanation;
+};
+
+// A diagnosis request (what `crowdmpm diagnose` and the C ABI's cmpm_Diagnose run):
+//   {"scenario": PATH, "trajectories": PATH, "model": PATH (default: the scenario's),
+//    "options": {"train_share", "window", "stride", "horizon", "residual_stride", "cell",
+//                "time_bin", "z_threshold", "null_replicates", "alpha", "max_terms",
+//                "min_gain", "min_gain_z", "candidates", "params", "iterations",
+//                "learning_rate", "threads", "seed"}}
+struct DiagnoseJob {
+  std::string scenario_path, trajectories_path;
+  ScenarioDef scenario;
+  Model model;
+  TrajectorySet recording;
+  DiagnoseOptions options;
+};
+DiagnoseJob parse_diagnose_job(const json& request, const std::string& base_dir = "");
+
+using DiagnoseProgress = std::function<void(const std::string&)>;
+DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& progress = nullptr);
+
+// The report (the shape: verdict, regions, hypotheses, terms) as JSON.
+json diagnosis_json(const DiagnoseJob& job, const DiagnosisResult& r);
+// Writes report.json, summary.txt, residual_before.png, residual_after.png, the scenario with
+// the accepted terms (scenario.json) and the refitted model (model.json) into out_dir.
+void write_diagnosis(const DiagnoseJob& job, const DiagnosisResult& r, const std::string& out_dir);
+
+}  // namespace crowdmpm
