@@ -67,6 +67,9 @@
 %feature("docstring") crowdmpm_binding::World::null_world "null_world() -> World: a world with a null id (every call raises); for testing error handling.";
 %feature("docstring") crowdmpm_binding::version "version() -> str: library version.";
 %feature("docstring") crowdmpm_binding::abi_version "abi_version() -> int: C ABI version.";
+%feature("docstring") crowdmpm_binding::train_model "train_model(request_json, out_model_path): learn a model from recordings (docs/learning.md).";
+%feature("docstring") crowdmpm_binding::predict_recording "predict_recording(request_json, out_json_path): prediction errors of models on a recording (docs/learning.md).";
+%feature("docstring") crowdmpm_binding::diagnose "diagnose(request_json, out_dir): find physics a scenario lacks; writes report.json, summary.txt and residual pictures (docs/diagnosis.md).";
 #endif
 
 %include "crowdmpm_binding.hpp"

@@ -31,6 +31,12 @@ inline void predict_recording(const std::string& request_json, const std::string
   check(cmpm_PredictRecording(request_json.c_str(), out_json_path.c_str()));
 }
 
+// Diagnoses missing physics (cmpm_Diagnose; request format in docs/diagnosis.md): writes
+// report.json, summary.txt, the residual pictures, scenario.json and model.json into out_dir.
+inline void diagnose(const std::string& request_json, const std::string& out_dir) {
+  check(cmpm_Diagnose(request_json.c_str(), out_dir.c_str()));
+}
+
 class World {
  public:
   // scenario: a file path, or JSON text if it starts with '{'. model: "" (the scenario's or the

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "engine/analysis/fields.hpp"
+#include "engine/diagnosis/diagnose.hpp"
 #include "engine/sim/simulation.hpp"
 #include "engine/predict/predict.hpp"
 #include "engine/learn/train.hpp"
@@ -532,6 +533,14 @@ cmpm_Status cmpm_PredictRecording(const char* request_json, const char* out_json
     const json j = job_request(request_json, out_json_path, "out_json_path", "<predict request>");
     const PredictJob job = parse_predict_job(j);
     save_json_file(prediction_json(job, run_prediction(job)), out_json_path);
+  });
+}
+
+cmpm_Status cmpm_Diagnose(const char* request_json, const char* out_dir) {
+  return guard("cmpm_Diagnose", CMPM_ERROR_INVALID_INPUT, [&] {
+    const json j = job_request(request_json, out_dir, "out_dir", "<diagnose request>");
+    const DiagnoseJob job = parse_diagnose_job(j);
+    write_diagnosis(job, run_diagnosis(job), out_dir);
   });
 }
 

@@ -32,7 +32,7 @@ contains() {  # contains NAME TEXT : $out must contain TEXT
 
 check "help" 0 "$cli" help
 contains "help lists train" "train --scenario"
-for c in simulate validate predict train; do
+for c in simulate validate predict train diagnose; do
   check "help $c" 0 "$cli" "$c" --help
   contains "help $c" "usage: crowdmpm $c"
 done
@@ -153,6 +153,26 @@ contains "predict --video" "learned crowd"
 [ -s "$work/video_pred/prediction.png" ] || { echo "FAIL predict --video: prediction.png missing"; failures=$((failures + 1)); }
 check "train --video too short" 1 "$cli" train "${video[@]}" --clip-length 30 --out "$work/video_model.json" --quiet
 contains "train --video too short" "windows of 30 s"
+
+# diagnose: on the bottleneck run the tool wrote above (a scenario and its own recording), then
+# the errors a user meets.
+check "diagnose" 0 "$cli" diagnose --scenario "$src/scenarios/bottleneck.json" --observed "$work/sim/trajectories.txt" \
+  --out "$work/diag" --iterations 3 --candidates drift,slow_zone --options '{"null_replicates": 2, "max_terms": 1, "window": 2}' --quiet
+for f in report.json summary.txt residual_before.png residual_after.png scenario.json model.json; do
+  [ -s "$work/diag/$f" ] || { echo "FAIL diagnose: $f missing"; failures=$((failures + 1)); }
+done
+contains "diagnose" "wrote $work/diag/report.json"
+check "diagnose without --observed" 2 "$cli" diagnose --scenario "$src/scenarios/bottleneck.json" --out "$work/diag2"
+contains "diagnose without --observed" "diagnose needs --scenario and --observed"
+check "diagnose unknown candidate" 1 "$cli" diagnose --scenario "$src/scenarios/bottleneck.json" --observed "$work/sim/trajectories.txt" \
+  --out "$work/diag2" --candidates ghost
+contains "diagnose unknown candidate" 'options.candidates[0]: unknown candidate "ghost"'
+check "diagnose bad options" 2 "$cli" diagnose --scenario "$src/scenarios/bottleneck.json" --observed "$work/sim/trajectories.txt" \
+  --out "$work/diag2" --options '{"cell": '
+contains "diagnose bad options" "--options must be a JSON object"
+check "diagnose option out of range" 1 "$cli" diagnose --scenario "$src/scenarios/bottleneck.json" --observed "$work/sim/trajectories.txt" \
+  --out "$work/diag2" --options '{"cell": -1}'
+contains "diagnose option out of range" "options.cell"
 
 if [ "$failures" -ne 0 ]; then
   echo "$failures CLI check(s) failed"

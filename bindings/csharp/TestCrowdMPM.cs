@@ -51,6 +51,7 @@ public static class TestCrowdMPM {
       }
     }
     Raises(() => World.from_snapshot(drill), "not a CrowdMPM snapshot", "a scenario is no snapshot");
+    Raises(() => crowdmpm.diagnose("{\"scenario\": 3}", "diag"), "scenario", "diagnose names the bad key");
     Raises(() => new World("{\"format\": \"crowdmpm-scenario\","), "invalid JSON", "bad JSON");
     Raises(() => World.null_world().step(1), "null world", "null world");
     World d = new World(drill);

@@ -54,6 +54,7 @@ public class TestCrowdMPM {
     raises(() -> World.from_snapshot(drill), "not a CrowdMPM snapshot", "a scenario is no snapshot");
 
     raises(() -> new World("{\"format\": \"crowdmpm-scenario\","), "invalid JSON", "bad JSON");
+    raises(() -> org.crowdmpm.crowdmpm.diagnose("{\"scenario\": 3}", "diag"), "scenario", "diagnose names the bad key");
     raises(() -> World.null_world().step(1), "null world", "null world");
     long a = w.add_agent(9.5, 4.0, "door");
     w.remove_agent(a);

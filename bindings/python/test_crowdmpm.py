@@ -110,6 +110,18 @@ class Bindings(unittest.TestCase):
         with self.assertRaisesRegex(RuntimeError, "options.window"):
             request["options"]["window"] = -1
             crowdmpm.train_model(json.dumps(request), out)
+        # Diagnosis of the same recording: the report and its pictures, and a bad request.
+        diag = os.path.join(tmp, "diagnosis")
+        crowdmpm.diagnose(json.dumps({"scenario": scenario, "trajectories": traj,
+                                      "options": {"window": 1, "iterations": 2, "null_replicates": 1, "max_terms": 1,
+                                                  "candidates": ["drift"]}}), diag)
+        with open(os.path.join(diag, "report.json")) as f:
+            report = json.load(f)
+        self.assertIn(report["verdict"]["type"], ["none", "drift"])
+        self.assertTrue(os.path.getsize(os.path.join(diag, "residual_before.png")) > 0)
+        with self.assertRaisesRegex(RuntimeError, "ghost"):
+            crowdmpm.diagnose(json.dumps({"scenario": scenario, "trajectories": traj,
+                                          "options": {"candidates": ["ghost"]}}), diag)
 
     def test_docstrings(self):
         self.assertIn("advance", crowdmpm.World.step.__doc__)

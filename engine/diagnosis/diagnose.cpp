@@ -1,6 +1,7 @@
 #include "engine/diagnosis/diagnose.hpp"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -243,10 +244,10 @@ double clampd(double v, double lo, double hi) { return std::max(lo, std::min(hi,
 
 // The candidates of one region, initialised from what its residuals show (DESIGN.md section 6,
 // step 3). drift is initialised from the whole venue's mean residual.
-std::vector<Term> initial_candidates(const Cluster& c, const Vec2& global_mean, const Model& m,
+std::vector<Term> initial_candidates(const Cluster& c, const Vec2& global_mean, const Model& m, const Geometry& geo,
                                      const std::vector<std::string>& types) {
   const double tau = m.params.tau;
-  const double range = std::max(2.0, 2.5 * c.radius);
+  const double range = clampd(2 * c.radius, 1.5, 4);
   std::vector<Term> out;
   for (const std::string& type : types) {
     json j;
@@ -267,6 +268,22 @@ std::vector<Term> initial_candidates(const Cluster& c, const Vec2& global_mean, 
     } else if (type == "slow_zone") {
       j = {{"type", "slow_zone"}, {"min", {c.lo.x(), c.lo.y()}}, {"max", {c.hi.x(), c.hi.y()}}, {"factor", 0.7},
            {"learn", {"min", "max", "factor"}}};
+    } else if (type == "wall_friction") {
+      // Along the wall nearest to the region, over the region's extent and a metre beyond.
+      const Vec2 n = geo.normal(c.center);
+      if (!n.allFinite() || n.squaredNorm() < 0.5) continue;
+      const Vec2 on = c.center - geo.sdf(c.center) * n, t(-n.y(), n.x());
+      const double half = std::max(2.0, c.radius + 1);
+      const Vec2 a = on - half * t, b = on + half * t;
+      j = {{"type", "wall_friction"}, {"from", {a.x(), a.y()}}, {"to", {b.x(), b.y()}}, {"coefficient", 1.0},
+           {"range", 0.5}, {"learn", {"coefficient", "range"}}};
+    } else if (type == "density_speed") {
+      j = {{"type", "density_speed"}, {"gamma", 1.913}, {"max_density", 5.4}, {"learn", {"gamma", "max_density"}}};
+    } else if (type == "counterflow") {
+      // The people walking another way leave a residual against the crowd's motion.
+      const double angle = c.mean_residual.squaredNorm() > 0 ? std::atan2(c.mean_residual.y(), c.mean_residual.x()) * 180 / M_PI : 0;
+      j = {{"type", "counterflow"}, {"min", {c.lo.x(), c.lo.y()}}, {"max", {c.hi.x(), c.hi.y()}}, {"direction", angle},
+           {"share", 0.2}, {"push", 2.6}, {"learn", {"min", "max", "direction", "share", "push"}}};
     } else {
       continue;
     }
@@ -280,6 +297,23 @@ std::vector<Term> initial_candidates(const Cluster& c, const Vec2& global_mean, 
 // pass nearer its centre).
 double evaluation_radius(double cluster_radius) { return std::max(1.0, 0.5 * cluster_radius); }
 double evaluation_radius(const Cluster& c) { return evaluation_radius(c.radius); }
+
+// Why a fitted term cannot be the physics it names (empty if it can): an obstacle must stand in
+// the venue's free space and have a body; one inside a known wall, or of a few centimetres,
+// only reshapes how people meet the walls the venue already has.
+std::string implausible(const Term& t, const Geometry& geo) {
+  if (report_type(t.law) != "obstacle") return {};
+  const Vec2 c(t.params[0], t.params[1]);
+  if (!(geo.sdf(c) > 0)) return "its centre " + point(c) + " lies inside a known solid or outside the domain";
+  if (t.params[2] < 0.1) return "its radius " + num(t.params[2]) + " m is below 0.1 m";
+  return {};
+}
+
+// Terms that act on the whole venue (judged on everyone, tried once a round).
+bool is_global(const Term& t) {
+  const std::string type = report_type(t.law);
+  return type == "drift" || type == "density_speed";
+}
 
 struct FitResult {
   Model model;
@@ -343,7 +377,8 @@ std::string explain(const DiagnoseOptions& o, const DiagnosisResult& r);
 }  // namespace
 
 const std::vector<std::string>& diagnosis_candidates() {
-  static const std::vector<std::string> c = {"obstacle", "drift", "attractor", "vortex", "slow_zone"};
+  static const std::vector<std::string> c = {"obstacle", "drift", "attractor", "vortex", "slow_zone",
+                                             "wall_friction", "density_speed", "counterflow"};
   return c;
 }
 
@@ -419,8 +454,10 @@ DiagnoseJob parse_diagnose_job(const json& request, const std::string& base_dir)
 DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& progress) {
   const DiagnoseOptions& d = job.options;
   const TrajectorySet& t = job.recording;
+  const auto t0 = std::chrono::steady_clock::now();
   auto say = [&](const std::string& s) {
-    if (progress) progress(s);
+    const double at = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    if (progress) progress("[" + num(at, 0) + " s] " + s);
   };
   DiagnosisResult res;
   const Split sp = split_recording(t, d);
@@ -475,54 +512,61 @@ DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& pr
     std::optional<size_t> best;
     std::vector<WindowErrors> best_err;
     FitResult best_fit;
-    for (const Cluster* c : significant) {
-      const int region_index = static_cast<int>(c - loc.clusters.data()) +
-                               static_cast<int>(res.regions.size() - loc.clusters.size());
-      const Membership near = members(sp.heldout, c->center, evaluation_radius(*c));
+    // Each significant region's local candidates, then the venue-wide ones once (judged on everyone).
+    std::vector<std::pair<const Cluster*, Term>> trials;
+    for (const Cluster* c : significant)
+      for (Term& cand : initial_candidates(*c, loc.global_mean, model, job.scenario.geo, types))
+        if (!is_global(cand)) trials.emplace_back(c, std::move(cand));
+    for (Term& cand : initial_candidates(*significant.front(), loc.global_mean, model, job.scenario.geo, types))
+      if (is_global(cand)) trials.emplace_back(nullptr, std::move(cand));
+    for (auto& [c, cand] : trials) {
+      const int region_index = c ? static_cast<int>(c - loc.clusters.data()) +
+                                       static_cast<int>(res.regions.size() - loc.clusters.size())
+                                 : -1;
+      const Membership near = c ? members(sp.heldout, c->center, evaluation_radius(*c)) : everyone;
       const ErrorStats base_region = stats_of(base_err, sp.heldout, near);
-      for (const Term& cand : initial_candidates(*c, loc.global_mean, model, types)) {
-        Hypothesis h;
-        h.round = round;
-        h.region = region_index;
-        h.baseline_error = base_region.rms;
-        std::vector<Term> trial = terms;
-        trial.push_back(cand);
-        say("  fitting " + report_type(cand.law) + " at " + point(c->center));
-        FitResult f = fit(job.scenario, trial, model, sp, d);
-        if (!f.ok) {
-          h.term = cand;
-          h.why = "fit failed: " + f.error;
-          h.heldout_error = h.heldout_error_global = kNan;
-          res.hypotheses.push_back(h);
-          continue;
-        }
-        h.term = f.terms.back();
-        h.term.learn.assign(h.term.params.size(), 0);
-        f.terms.back() = h.term;
-        std::vector<WindowErrors> err = rollout_errors(with_terms(job.scenario, f.terms), f.model, sp.heldout, ds, d.threads);
-        const ErrorStats region = stats_of(err, sp.heldout, near), global = stats_of(err, sp.heldout, everyone);
-        h.heldout_error = region.rms;
-        h.heldout_error_global = global.rms;
-        const Comparison cmp = compare(base_region, region, 0, cand.learned_count());
-        const Comparison cmp_global = compare(base_global, global, 0, 0);
-        h.gain = cmp.gain;
-        h.gain_z = cmp.z;
-        h.score = cmp.score_after;
-        h.baseline_score = cmp.score_before;
-        std::string why;
-        if (!(cmp.gain >= d.min_gain)) why = "held-out gain " + num(100 * cmp.gain, 1) + "% below " + num(100 * d.min_gain, 0) + "%";
-        else if (!(cmp.z >= d.min_gain_z)) why = "gain " + num(cmp.z, 1) + " standard errors, below " + num(d.min_gain_z, 1);
-        else if (!(cmp.score_after < cmp.score_before)) why = "information criterion does not fall";
-        else if (cmp_global.gain < -0.01) why = "held-out error of everyone rises by " + num(-100 * cmp_global.gain, 1) + "%";
-        h.why = why.empty() ? "held-out gain " + num(100 * cmp.gain, 1) + "% (" + num(cmp.z, 1) + " standard errors)" : why;
-        const bool passes = why.empty();
-        say("    " + report_type(cand.law) + ": region " + num(base_region.rms, 3) + " -> " + num(region.rms, 3) + " m, " + h.why);
+      Hypothesis h;
+      h.round = round;
+      h.region = region_index;
+      h.baseline_error = base_region.rms;
+      std::vector<Term> trial = terms;
+      trial.push_back(cand);
+      say("  fitting " + report_type(cand.law) + (c ? " at " + point(c->center) : std::string(" (whole venue)")));
+      FitResult f = fit(job.scenario, trial, model, sp, d);
+      if (!f.ok) {
+        h.term = cand;
+        h.why = "fit failed: " + f.error;
+        h.heldout_error = h.heldout_error_global = kNan;
         res.hypotheses.push_back(h);
-        if (passes && (!best || h.score - h.baseline_score < res.hypotheses[*best].score - res.hypotheses[*best].baseline_score)) {
-          best = res.hypotheses.size() - 1;
-          best_err = std::move(err);
-          best_fit = f;
-        }
+        continue;
+      }
+      h.term = f.terms.back();
+      h.term.learn.assign(h.term.params.size(), 0);
+      f.terms.back() = h.term;
+      std::vector<WindowErrors> err = rollout_errors(with_terms(job.scenario, f.terms), f.model, sp.heldout, ds, d.threads);
+      const ErrorStats region = stats_of(err, sp.heldout, near), global = stats_of(err, sp.heldout, everyone);
+      h.heldout_error = region.rms;
+      h.heldout_error_global = global.rms;
+      const Comparison cmp = compare(base_region, region, 0, cand.learned_count());
+      h.gain = cmp.gain;
+      h.gain_z = cmp.z;
+      h.score = cmp.score_after;
+      h.baseline_score = cmp.score_before;
+      const double global_change = global.rms / base_global.rms - 1;
+      std::string why = implausible(h.term, job.scenario.geo);
+      if (!why.empty()) {
+      } else if (!(cmp.gain >= d.min_gain)) why = "held-out gain " + num(100 * cmp.gain, 1) + "% below " + num(100 * d.min_gain, 0) + "%";
+      else if (!(cmp.z >= d.min_gain_z)) why = "gain " + num(cmp.z, 1) + " standard errors, below " + num(d.min_gain_z, 1);
+      else if (!(cmp.score_after < cmp.score_before)) why = "information criterion does not fall";
+      else if (!(global_change <= 0.02)) why = "held-out error of everyone rises by " + num(100 * global_change, 1) + "%";
+      h.why = why.empty() ? "held-out gain " + num(100 * cmp.gain, 1) + "% (" + num(cmp.z, 1) + " standard errors)" : why;
+      const bool passes = why.empty();
+      say("    " + report_type(cand.law) + ": region " + num(base_region.rms, 3) + " -> " + num(region.rms, 3) + " m, " + h.why);
+      res.hypotheses.push_back(h);
+      if (passes && (!best || h.score - h.baseline_score < res.hypotheses[*best].score - res.hypotheses[*best].baseline_score)) {
+        best = res.hypotheses.size() - 1;
+        best_err = std::move(err);
+        best_fit = f;
       }
     }
     if (!best) break;
@@ -532,7 +576,7 @@ DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& pr
     model = best_fit.model;
     base_err = std::move(best_err);
     res.terms.push_back(h.term);
-    if (first_radius < 0) {
+    if (res.terms.size() == 1 && h.region >= 0) {
       const Region& reg = res.regions[static_cast<size_t>(h.region)];
       first_center = reg.center;
       first_radius = evaluation_radius(reg.radius);
@@ -576,6 +620,14 @@ std::string describe(const Term& t) {
   if (type == "slow_zone")
     return "a slow zone [" + num(p[0], 1) + ", " + num(p[2], 1) + "] x [" + num(p[1], 1) + ", " + num(p[3], 1) +
            "] m where the desired speed is " + num(p[4]) + " times its own";
+  if (type == "wall_friction")
+    return "friction along the wall from " + point(Vec2(p[0], p[1])) + " to " + point(Vec2(p[2], p[3])) + " (" + num(p[4]) +
+           " /s within " + num(p[5]) + " m)";
+  if (type == "density_speed")
+    return "a desired speed falling with density (Weidmann form, gamma " + num(p[0]) + " /m^2, stopping at " + num(p[1], 1) + " /m^2)";
+  if (type == "counterflow")
+    return num(100 * p[5], 0) + "% of the people in [" + num(p[0], 1) + ", " + num(p[2], 1) + "] x [" + num(p[1], 1) + ", " +
+           num(p[3], 1) + "] m heading " + num(p[4], 0) + " degrees";
   return "a " + type + " term";
 }
 
@@ -587,6 +639,9 @@ std::string what_it_shows(const Term& t) {
   if (type == "attractor") return std::string("People are ") + (p[2] >= 0 ? "drawn towards " : "pushed away from ") + point(Vec2(p[0], p[1])) + "; ";
   if (type == "vortex") return "Flow turns around " + point(Vec2(p[0], p[1])) + "; ";
   if (type == "slow_zone") return "People walk slower in part of the venue; ";
+  if (type == "wall_friction") return "People along a wall are held back; ";
+  if (type == "density_speed") return "People slow down where the crowd is dense; ";
+  if (type == "counterflow") return "Part of the crowd moves against the rest; ";
   return "";
 }
 

@@ -21,11 +21,13 @@ struct DiagnoseOptions {
   ResidualOptions residual;
   int null_replicates = 6;
   double alpha = 0.01;        // a region is significant below this p-value
-  int max_regions = 2;        // regions tried per round, strongest first
+  int max_regions = 3;        // regions tried per round, strongest first
   int max_terms = 3;
-  // A term is accepted when, on the held-out part and among the people passing its region,
-  // the RMS error falls by at least min_gain (share), the paired gain over windows is at least
-  // min_gain_z standard errors, and the information criterion n ln(MSE) + k ln(n) falls.
+  // A term is accepted when, on the held-out part and among the people passing its region
+  // (everyone for a venue-wide term), the RMS error falls by at least min_gain (share), the
+  // paired gain over people is at least min_gain_z standard errors and the information
+  // criterion n ln(MSE) + k ln(n) falls, while the error of everyone rises by no more than 2%;
+  // the accepted term of a round is the one whose criterion falls most.
   double min_gain = 0.1;
   double min_gain_z = 3;
   std::vector<std::string> candidates;  // law types to try; empty: all diagnosis candidates

@@ -59,11 +59,11 @@ Eigen::Matrix4d local_jacobian(F&& f, const Eigen::Vector4d& at) {
 // behaviour's navigation field, a pointwise function whose Jacobian is taken by central
 // differences (DESIGN.md section 4 allows local Jacobians of pointwise functions).
 void drive_adjoint(const StepInputs& in, const Behaviour& beh, const World& w, size_t p, const Vec2& heading_prev,
-                   const Vec2& a_bar, const Vec2& h_bar, double u_bar_later, Vec2& x_bar, Vec2& v_bar, ModelGradient& out,
-                   std::vector<double>& f_own) {
+                   const std::vector<double>& density, const Vec2& a_bar, const Vec2& h_bar, double u_bar_later,
+                   Vec2& x_bar, Vec2& v_bar, ModelGradient& out, std::vector<double>& f_own) {
   const MaterialParams& P = in.model.params;
   const Vec2 x = w.x[p], v = w.v[p];
-  const TermPoint pt{x, v, heading_prev, w.group[p], in.time};
+  const TermPoint pt = terms_point(in, w, p, heading_prev, density);
   const bool driven = beh.kind != Behaviour::Kind::None;
   const Vec2 e = desired_direction(in, beh, x, heading_prev);
   // The speed factors, each term's own and the product of the others'.
@@ -276,9 +276,10 @@ ModelGradient WindowGradient::run(Simulation& sim, int steps, const StateLossGra
     hu.assign(n, 0.0);
     headway_adjoint(in, nb, w, xadj.accel, hx, he, hu, out);
     in.time = step_time[static_cast<size_t>(k)];
+    const std::vector<double> density = terms_density(in, w);
     for (size_t p = 0; p < n; ++p) {
       Vec2 gx = Vec2::Zero(), gv = Vec2::Zero();
-      drive_adjoint(in, behaviours[static_cast<size_t>(w.behaviour[p])], w, p, st.heading[p], xadj.accel[p],
+      drive_adjoint(in, behaviours[static_cast<size_t>(w.behaviour[p])], w, p, st.heading[p], density, xadj.accel[p],
                     tadj.heading[p] + he[p], hu[p], gx, gv, out, f_own);
       xb[p] = xadj.x[p] + tadj.x[p] + hx[p] + gx;
       vb[p] = xadj.v[p] + tadj.v[p] + gv;

@@ -125,12 +125,26 @@ Vec2 desired_direction(const StepInputs& in, const Behaviour& b, const Vec2& x, 
   return Vec2::Zero();
 }
 
-void drive_point(const StepInputs& in, const Behaviour& beh, int group, const Vec2& x, const Vec2& v, double v0,
-                 const Vec2& prev_heading, Vec2& accel, Vec2& heading, double& free_speed) {
+TermPoint terms_point(const StepInputs& in, const World& w, size_t p, const Vec2& heading, const std::vector<double>& density) {
+  TermPoint pt{w.x[p], w.v[p], heading, w.group[p], in.time};
+  pt.density = density.empty() ? 0.0 : density[p];
+  pt.id = w.id[p];
+  return pt;
+}
+
+std::vector<double> terms_density(const StepInputs& in, const World& w) {
+  return terms_need_density(in.terms) ? local_density(w, 0, kDensityRadius) : std::vector<double>();
+}
+
+void drive_point(const StepInputs& in, const Behaviour& beh, const TermPoint& pt, double v0, Vec2& accel, Vec2& heading,
+                 double& free_speed) {
   const MaterialParams& P = in.model.params;
+  const Vec2& x = pt.x;
+  const Vec2& v = pt.v;
+  const Vec2& prev_heading = pt.heading;
   Vec2 a = Vec2::Zero();
   double factor = 1;
-  apply_terms(in.terms, TermPoint{x, v, prev_heading, group, in.time}, a, factor);
+  apply_terms(in.terms, pt, a, factor);
   Vec2 dir = desired_direction(in, beh, x, prev_heading);
   const double u = P.v0_scale * v0 * factor;  // the free speed
   if (beh.kind != Behaviour::Kind::None) a = (u * dir - v) / P.tau + a;
@@ -143,9 +157,10 @@ void drive_point(const StepInputs& in, const Behaviour& beh, int group, const Ve
 }
 
 void kernel_drive(const StepInputs& in, World& w, ThreadPool& pool) {
+  const std::vector<double> density = terms_density(in, w);
   pool.parallel_for(w.size(), [&](size_t b, size_t e) {
     for (size_t p = b; p < e; ++p)
-      drive_point(in, in.behaviours[w.behaviour[p]], w.group[p], w.x[p], w.v[p], w.v0[p], w.heading[p], w.accel[p],
+      drive_point(in, in.behaviours[w.behaviour[p]], terms_point(in, w, p, w.heading[p], density), w.v0[p], w.accel[p],
                   w.heading[p], w.free_speed[p]);
   });
 }

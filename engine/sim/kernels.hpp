@@ -87,8 +87,15 @@ Mat2 kirchhoff_stress(const Model& m, const Mat2& F, double J);
 Vec2 desired_direction(const StepInputs& in, const Behaviour& b, const Vec2& x, const Vec2& heading);
 // One agent's drive, a_p = (s v0 f e - v) / tau + sum of the terms' accelerations, with f the
 // product of the terms' speed factors, and its heading; kernel_drive applies it to every agent.
-void drive_point(const StepInputs& in, const Behaviour& beh, int group, const Vec2& x, const Vec2& v, double v0,
-                 const Vec2& prev_heading, Vec2& accel, Vec2& heading, double& free_speed);
+// pt: the agent's position, velocity, previous heading, group, the time, and its local density
+// and id for the terms (terms_point).
+void drive_point(const StepInputs& in, const Behaviour& beh, const TermPoint& pt, double v0, Vec2& accel, Vec2& heading,
+                 double& free_speed);
+// The TermPoint of agent p of w (density: local_density of the world when the terms need it,
+// else empty).
+TermPoint terms_point(const StepInputs& in, const World& w, size_t p, const Vec2& heading, const std::vector<double>& density);
+// The local densities the scenario's terms read (empty when none reads them).
+std::vector<double> terms_density(const StepInputs& in, const World& w);
 // Headway speed adaptation (model parameter time_gap T > 0; after Tordeux, Chraibi & Seyfried
 // 2016): people walk no faster than the gap to the nearest person ahead of them allows,
 //   V_p = min(u_p, max(0, s_p / T)),  s_p = min over q ahead of (x_q - x_p) . e_p - r_p - r_q,

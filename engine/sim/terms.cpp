@@ -10,10 +10,14 @@ const TermLaw* radial_term();
 const TermLaw* vortex_term();
 const TermLaw* obstacle_term();
 const TermLaw* slow_zone_term();
+const TermLaw* wall_friction_term();
+const TermLaw* density_speed_term();
+const TermLaw* counterflow_term();
 
 const std::vector<const TermLaw*>& term_laws() {
   static const std::vector<const TermLaw*> laws = {uniform_term(), radial_term(), vortex_term(), obstacle_term(),
-                                                    slow_zone_term()};
+                                                    slow_zone_term(), wall_friction_term(), density_speed_term(),
+                                                    counterflow_term()};
   return laws;
 }
 
@@ -27,6 +31,12 @@ std::vector<TermField> centred_fields(const char* strength_meaning) {
   return {{"center", 2, "m", -1e9, 1e9, kRequired, true, "the centre"},
           {"strength", 1, "m/s^2", -50, 50, kRequired, true, strength_meaning},
           {"range", 1, "m", 1e-9, 1e300, 1e300, false, "no acceleration farther than this"}};
+}
+
+bool terms_need_density(const std::vector<Term>& terms) {
+  for (const Term& t : terms)
+    if (t.law->needs_density()) return true;
+  return false;
 }
 
 size_t TermLaw::parameter_count() const {

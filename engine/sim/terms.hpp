@@ -10,6 +10,7 @@
 // vector-Jacobian product with respect to x, v and every parameter (DESIGN.md section 4).
 // Adding a law is one file in sim/terms/ and one line in term_laws() (terms.cpp).
 #include <cmath>
+#include <cstdint>
 #include <limits>
 #include <memory>
 #include <string>
@@ -37,6 +38,8 @@ struct Dual {
 inline double sqrt(double a) { return std::sqrt(a); }
 inline double exp(double a) { return std::exp(a); }
 inline double log(double a) { return std::log(a); }
+inline double cos(double a) { return std::cos(a); }
+inline double sin(double a) { return std::sin(a); }
 inline double value_of(double x) { return x; }
 inline double value_of(const Dual& x) { return x.v; }
 inline Dual operator-(const Dual& a) {
@@ -78,13 +81,20 @@ inline Dual exp(const Dual& a) {
   return chain(a, e, e);
 }
 inline Dual log(const Dual& a) { return chain(a, std::log(a.v), 1 / a.v); }
+inline Dual cos(const Dual& a) { return chain(a, std::cos(a.v), -std::sin(a.v)); }
+inline Dual sin(const Dual& a) { return chain(a, std::sin(a.v), std::cos(a.v)); }
 
 // Where a term is evaluated: one agent's state and the simulation clock.
+// heading, density and id are read as they are: a law's derivatives do not flow through them.
 struct TermPoint {
   Vec2 x = Vec2::Zero(), v = Vec2::Zero();  // m, m/s
-  Vec2 heading = Vec2::Zero();  // walking direction of the previous step (read only: no adjoint)
+  Vec2 heading = Vec2::Zero();  // walking direction of the previous step
   int group = 0;
   double time = 0;  // s
+  // persons/m^2 around the agent (local_density over kDensityRadius, world.hpp); computed only
+  // when a term of the scenario needs it (TermLaw::needs_density), 0 otherwise.
+  double density = 0;
+  uint64_t id = 0;  // the agent's entity id (a stable per-person draw for laws that pick people)
 };
 
 constexpr double kRequired = std::numeric_limits<double>::quiet_NaN();
@@ -105,6 +115,7 @@ class TermLaw {
   virtual ~TermLaw() = default;
   virtual const char* type() const = 0;
   virtual const char* alias() const { return nullptr; }  // a second name accepted in scenarios
+  virtual bool needs_density() const { return false; }    // reads TermPoint::density
   virtual const char* summary() const = 0;
   virtual const std::vector<TermField>& fields() const = 0;
   size_t parameter_count() const;
@@ -188,6 +199,9 @@ struct Term {
   // Sets parameter k, clamped to its field's range.
   void set_clamped(size_t k, double value);
 };
+
+// Whether any of the terms reads TermPoint::density.
+bool terms_need_density(const std::vector<Term>& terms);
 
 // The drive's share of every term at one agent: sum of accelerations, product of speed factors.
 void apply_terms(const std::vector<Term>& terms, const TermPoint& pt, Vec2& accel, double& factor);

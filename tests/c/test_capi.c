@@ -355,6 +355,33 @@ static void test_train(void) {
   snprintf(request, sizeof request,
            "{\"datasets\": [{\"scenario\": \"%s\", \"trajectories\": [\"%s\"]}], \"options\": {\"params\": [\"nonsense\"]}}", scen, traj);
   CHECK_FAILS(cmpm_TrainModel(request, model), CMPM_ERROR_INVALID_INPUT, "nonsense");
+  /* Diagnosis of the same recording in its venue: the report and its pictures, and bad requests. */
+  snprintf(request, sizeof request,
+           "{\"scenario\": \"%s\", \"trajectories\": \"%s\", \"options\": {\"window\": 1, \"iterations\": 2, "
+           "\"null_replicates\": 1, \"max_terms\": 1, \"candidates\": [\"drift\"]}}", scen, traj);
+  remove("capi_diagnosis/report.json");
+  CHECK(cmpm_Diagnose(request, "capi_diagnosis") == CMPM_OK);
+  {
+    char text[1 << 16] = {0};
+    FILE* rf = fopen("capi_diagnosis/report.json", "r");
+    CHECK(rf != NULL);
+    if (rf) {
+      size_t got = fread(text, 1, sizeof text - 1, rf);
+      fclose(rf);
+      CHECK(got > 0);
+      CHECK(strstr(text, "\"verdict\"") != NULL);
+      CHECK(strstr(text, "\"hypotheses\"") != NULL);
+    }
+    FILE* pf = fopen("capi_diagnosis/residual_before.png", "rb");
+    CHECK(pf != NULL);
+    if (pf) fclose(pf);
+  }
+  CHECK_FAILS(cmpm_Diagnose(NULL, "capi_diagnosis"), CMPM_ERROR_INVALID_ARGUMENT, "request_json");
+  CHECK_FAILS(cmpm_Diagnose(request, NULL), CMPM_ERROR_INVALID_ARGUMENT, "out_dir");
+  CHECK_FAILS(cmpm_Diagnose("{\"scenario\": ", "capi_diagnosis"), CMPM_ERROR_INVALID_INPUT, "invalid JSON");
+  snprintf(request, sizeof request, "{\"scenario\": \"%s\", \"trajectories\": \"%s\", \"options\": {\"candidates\": [\"ghost\"]}}",
+           scen, traj);
+  CHECK_FAILS(cmpm_Diagnose(request, "capi_diagnosis"), CMPM_ERROR_INVALID_INPUT, "ghost");
 }
 
 int main(int argc, char** argv) {

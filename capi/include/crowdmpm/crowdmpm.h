@@ -15,7 +15,7 @@
  * Thread contract (ABI version 2):
  *  - Any function may be called from any thread. Calls on different worlds run concurrently;
  *    calls on the same world are serialised (each holds the world for its whole duration), so
- *    a read never sees a half-made step. cmpm_TrainModel and cmpm_PredictRecording use no
+ *    a read never sees a half-made step. cmpm_TrainModel, cmpm_PredictRecording and cmpm_Diagnose use no
  *    world and run concurrently with anything.
  *  - cmpm_DestroyWorld while another thread is in a call on that world waits for that call to
  *    return, then frees the world; calls that were waiting to start on it, and every later
@@ -219,6 +219,24 @@ CMPM_API cmpm_Status cmpm_TrainModel(const char* request_json, const char* out_m
  * CMPM_ERROR_INVALID_INPUT as for cmpm_TrainModel, and when observe + horizon exceed the
  * recording. */
 CMPM_API cmpm_Status cmpm_PredictRecording(const char* request_json, const char* out_json_path);
+
+/* Diagnosis (docs/diagnosis.md), as `crowdmpm diagnose`: fits the model on the recording's
+ * first part, locates where it and the recording disagree, fits candidate force terms there and
+ * keeps those that lower the held-out error; writes report.json (verdict, regions, hypotheses,
+ * terms), summary.txt, residual_before.png, residual_after.png, scenario.json (the venue with
+ * the accepted terms) and model.json into the folder out_dir (created if missing). request_json:
+ *   {"scenario": PATH, "trajectories": PATH, "model": PATH (optional; default the scenario's),
+ *    "options": {"train_share": 0.6, "window": 3, "stride": 1, "horizon": 1.5,
+ *                "residual_stride": 0.5, "cell": 0.5, "time_bin": 5, "z_threshold": 3.5,
+ *                "source_margin": 2, "null_replicates": 6, "alpha": 0.01, "max_terms": 3,
+ *                "min_gain": 0.1, "min_gain_z": 3, "candidates": [NAME, ...],
+ *                "params": [NAME, ...], "iterations": 60, "learning_rate": 0.05,
+ *                "threads": 1, "seed": 1, "desired_speed": "free"},
+ *    "input": {"max_bytes": 268435456, "allow_outside_paths": false}}
+ * Blocks for seconds to minutes; the result does not depend on "threads".
+ * CMPM_ERROR_INVALID_INPUT as for cmpm_TrainModel, and for recordings too short to split into
+ * fitting and held-out windows. */
+CMPM_API cmpm_Status cmpm_Diagnose(const char* request_json, const char* out_dir);
 
 #ifdef __cplusplus
 }

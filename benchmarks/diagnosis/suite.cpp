@@ -1,0 +1,185 @@
+// The diagnosis suite (benchmarks/diagnosis/README.md): recordings made by the social-force
+// model kind with one effect concealed from the scenario handed to the diagnosis, at several
+// tracking-noise levels, and controls with nothing concealed; each is diagnosed as
+// `crowdmpm diagnose` does and scored (identification, false findings, localisation and
+// parameter error, held-out error before and after).
+//
+// usage: diagnosis_suite SUITE.json --out DIR [--threads N] [--only SCENE:EFFECT]
+//                        [--noise SD] [--options JSON]
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include "engine/core/input.hpp"
+#include "engine/diagnosis/diagnose.hpp"
+#include "engine/diagnosis/synthetic.hpp"
+
+using namespace crowdmpm;
+namespace fs = std::filesystem;
+
+namespace {
+
+struct Row {
+  std::string scene, effect, verdict;
+  double noise = 0;
+  bool correct = false, finding = false;
+  double loc_error = NAN, param_error = NAN;
+  std::string param_name;
+  double before = NAN, after = NAN, global_before = NAN, global_after = NAN, seconds = 0;
+};
+
+// The parameter compared for each type, in the report's names.
+const char* compared_param(const std::string& type) {
+  if (type == "obstacle") return "radius";
+  if (type == "attractor" || type == "vortex") return "strength";
+  if (type == "slow_zone") return "factor";
+  return "";
+}
+
+std::string fmt(double v, int d = 3) {
+  if (!std::isfinite(v)) return "-";
+  char b[32];
+  std::snprintf(b, sizeof b, "%.*f", d, v);
+  return b;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  try {
+    std::string suite_path, out_dir, only;
+    int threads = 2;
+    double only_noise = -1;
+    json extra = json::object();
+    for (int i = 1; i < argc; ++i) {
+      const std::string a = argv[i];
+      auto value = [&]() -> std::string {
+        if (i + 1 >= argc) throw Error(a + " needs a value");
+        return argv[++i];
+      };
+      if (a == "--out") out_dir = value();
+      else if (a == "--threads") threads = std::stoi(value());
+      else if (a == "--only") only = value();
+      else if (a == "--noise") only_noise = std::stod(value());
+      else if (a == "--options") extra = json::parse(value());
+      else if (!a.empty() && a[0] == '-') throw Error("unknown option " + a);
+      else suite_path = a;
+    }
+    if (suite_path.empty() || out_dir.empty()) throw Error("usage: diagnosis_suite SUITE.json --out DIR [--threads N] [--only SCENE:EFFECT] [--noise SD] [--options JSON]");
+    const json suite = load_json_file(suite_path);
+    const fs::path scenes = fs::path(suite_path).parent_path() / "scenes";
+    const Model generator = Model::parse(JsonReader(suite.at("generator_model"), "generator_model"), suite_path);
+    std::vector<Row> rows;
+    const auto& cases = suite.at("cases");
+    for (size_t ci = 0; ci < cases.size(); ++ci) {
+      const json& c = cases[ci];
+      const std::string scene = c.at("scene"), effect = c.at("effect");
+      if (!only.empty() && only != scene + ":" + effect) continue;
+      const json belief = load_json_file((scenes / (scene + ".json")).string());
+      json truth = belief;
+      truth["seed"] = belief.value("seed", 1) + static_cast<int>(ci);
+      truth["model"] = suite.at("generator_model");
+      if (c.contains("obstacle")) truth["geometry"]["obstacles"].push_back({{"id", "concealed"}, {"circle", c.at("obstacle")}});
+      if (c.contains("force")) truth["forces"] = json::array({c.at("force")});
+      for (double noise : suite.at("noise").get<std::vector<double>>()) {
+        if (only_noise >= 0 && std::abs(noise - only_noise) > 1e-9) continue;
+        const fs::path dir = fs::path(out_dir) / (scene + "_" + effect + "_" + fmt(noise, 2));
+        fs::create_directories(dir);
+        save_json_file(belief, (dir / "belief.json").string());
+        save_json_file(truth, (dir / "truth.json").string());
+        const ScenarioDef truth_def = ScenarioDef::load((dir / "truth.json").string());
+        write_noisy_recording(truth_def, generator, noise, 1000 + ci * 10 + static_cast<uint64_t>(noise * 1000), threads,
+                              (dir / "observed.txt").string());
+        json options = extra;
+        options["threads"] = threads;
+        const json request = {{"scenario", (dir / "belief.json").string()}, {"trajectories", (dir / "observed.txt").string()},
+                              {"options", options}};
+        const auto t0 = std::chrono::steady_clock::now();
+        const DiagnoseJob job = parse_diagnose_job(request);
+        const DiagnosisResult r = run_diagnosis(job);
+        write_diagnosis(job, r, dir.string());
+        Row row;
+        row.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+        row.scene = scene;
+        row.effect = effect;
+        row.noise = noise;
+        const json report = diagnosis_json(job, r);
+        const json& v = report.at("verdict");
+        row.verdict = v.at("type");
+        row.finding = row.verdict != "none";
+        row.correct = row.verdict == effect;
+        row.before = v.at("heldout_error_before");
+        row.after = v.at("heldout_error_after");
+        row.global_before = v.at("heldout_error_global_before");
+        row.global_after = v.at("heldout_error_global_after");
+        if (row.correct && effect != "none") {
+          const json& p = v.at("params");
+          const json& truth_params = c.contains("obstacle") ? c.at("obstacle") : c.at("force");
+          if (truth_params.contains("center") && p.contains("x"))
+            row.loc_error = std::hypot(p.at("x").get<double>() - truth_params.at("center")[0].get<double>(),
+                                       p.at("y").get<double>() - truth_params.at("center")[1].get<double>());
+          row.param_name = compared_param(effect);
+          if (!row.param_name.empty() && p.contains(row.param_name))
+            row.param_error = std::abs(p.at(row.param_name).get<double>() - truth_params.at(row.param_name).get<double>());
+          if (effect == "drift")
+            row.param_error = std::hypot(p.at("ax").get<double>() - truth_params.at("acceleration")[0].get<double>(),
+                                         p.at("ay").get<double>() - truth_params.at("acceleration")[1].get<double>()),
+            row.param_name = "acceleration";
+        }
+        std::printf("%-9s %-10s noise %.2f: verdict %-10s %s  held-out %s -> %s m (everyone %s -> %s)  loc %s m  %s error %s  (%.0f s)\n",
+                    scene.c_str(), effect.c_str(), noise, row.verdict.c_str(),
+                    effect == "none" ? (row.finding ? "FALSE FINDING" : "ok") : (row.correct ? "correct" : "WRONG"),
+                    fmt(row.before).c_str(), fmt(row.after).c_str(), fmt(row.global_before).c_str(), fmt(row.global_after).c_str(),
+                    fmt(row.loc_error, 2).c_str(), row.param_name.empty() ? "param" : row.param_name.c_str(),
+                    fmt(row.param_error, 2).c_str(), row.seconds);
+        std::fflush(stdout);
+        rows.push_back(row);
+      }
+    }
+    // The table.
+    std::ofstream t(fs::path(out_dir) / "table.md");
+    t << "| scene | concealed | noise (m) | verdict | result | held-out error in region (m) | everyone (m) | localisation error (m) | parameter error | time (s) |\n"
+      << "|---|---|---|---|---|---|---|---|---|---|\n";
+    for (const Row& r : rows)
+      t << "| " << r.scene << " | " << r.effect << " | " << fmt(r.noise, 2) << " | " << r.verdict << " | "
+        << (r.effect == "none" ? (r.finding ? "false finding" : "no finding (right)") : (r.correct ? "correct" : "wrong")) << " | "
+        << fmt(r.before) << " → " << fmt(r.after) << " | " << fmt(r.global_before) << " → " << fmt(r.global_after) << " | "
+        << fmt(r.loc_error, 2) << " | " << (r.param_name.empty() ? "-" : r.param_name + " " + fmt(r.param_error, 2)) << " | "
+        << fmt(r.seconds, 0) << " |\n";
+    t << "\n";
+    std::vector<double> levels = suite.at("noise").get<std::vector<double>>();
+    for (double noise : levels) {
+      int n = 0, ok = 0, controls = 0, false_findings = 0;
+      for (const Row& r : rows) {
+        if (std::abs(r.noise - noise) > 1e-9) continue;
+        if (r.effect == "none") {
+          ++controls;
+          false_findings += r.finding;
+        } else {
+          ++n;
+          ok += r.correct;
+        }
+      }
+      if (n + controls == 0) continue;
+      t << "- noise " << fmt(noise, 2) << " m: top-1 identification " << ok << "/" << n << ", false findings on controls "
+        << false_findings << "/" << controls << "\n";
+    }
+    double worst_loc = 0, least_gain = 1;
+    for (const Row& r : rows) {
+      if (!r.correct || r.effect == "none") continue;
+      if (std::isfinite(r.loc_error)) worst_loc = std::max(worst_loc, r.loc_error);
+      least_gain = std::min(least_gain, 1 - r.after / r.before);
+    }
+    t << "- largest localisation error of a correctly found obstacle, attractor or vortex: " << fmt(worst_loc, 2) << " m\n"
+      << "- smallest held-out error reduction of a correct identification: " << fmt(100 * least_gain, 1) << "%\n";
+    std::printf("table: %s\n", (fs::path(out_dir) / "table.md").string().c_str());
+    return 0;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "diagnosis_suite: %s\n", e.what());
+    return 1;
+  }
+}

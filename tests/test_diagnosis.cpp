@@ -1,0 +1,149 @@
+// Diagnosis (docs/diagnosis.md): a concealed obstacle is found, placed and sized from a
+// recording made by another model kind (social force), a recording with nothing concealed
+// gives no finding, the report has the documented shape, and bad requests name their error.
+#include <catch2/catch.hpp>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+
+#include "engine/diagnosis/diagnose.hpp"
+#include "engine/diagnosis/synthetic.hpp"
+#include "support.hpp"
+
+using namespace crowdmpm;
+namespace fs = std::filesystem;
+
+namespace {
+// A 14 m x 3 m corridor walked left to right; what the user believes.
+const char* kCorridor = R"({"format": "crowdmpm-scenario", "version": 1, "name": "test corridor",
+  "domain": {"min": [-2, -0.5], "max": [16, 3.5], "cell_size": 0.5},
+  "time": {"dt": 0.01, "duration": 36, "output_rate": 10}, "seed": 7, "model": "default",
+  "geometry": {"obstacles": [{"rect": [-2, -0.5, 16, 0]}, {"rect": [-2, 3, 16, 3.5]}],
+               "exits": [{"id": "end", "rect": [15, 0, 16, 3]}]},
+  "sources": [{"id": "in", "region": {"rect": [-1.8, 0.2, 0, 2.8]}, "rate": 3.5, "start": 0, "end": 36,
+               "desired_speed": {"mean": 1.3, "sd": 0.15}, "behaviour": {"type": "goal", "target": "end"}}]})";
+
+struct Case {
+  fs::path dir;
+  std::string belief, observed;
+};
+
+// The belief file and a recording of the truth (the belief plus `concealed` obstacles) by the
+// social-force model with 0.03 m tracking noise.
+Case make_case(const std::string& name, const json& concealed) {
+  Case c;
+  c.dir = fs::path(CROWDMPM_BINARY_DIR) / "tests" / "diagnosis" / name;
+  fs::create_directories(c.dir);
+  const json belief = json::parse(kCorridor);
+  c.belief = (c.dir / "belief.json").string();
+  c.observed = (c.dir / "observed.txt").string();
+  save_json_file(belief, c.belief);
+  json truth = belief;
+  for (const auto& o : concealed) truth["geometry"]["obstacles"].push_back(o);
+  const ScenarioDef t = ScenarioDef::parse(truth, "truth", c.dir.string());
+  write_noisy_recording(t, Model::default_of("social_force"), 0.03, 11, 2, c.observed);
+  return c;
+}
+
+json request_for(const Case& c) {
+  return {{"scenario", c.belief},
+          {"trajectories", c.observed},
+          {"options", {{"iterations", 30}, {"null_replicates", 3}, {"threads", 2}, {"max_terms", 1},
+                       {"candidates", {"obstacle", "drift", "slow_zone"}}}}};
+}
+}  // namespace
+
+TEST_CASE("diagnosis finds a concealed obstacle and writes the documented report", "[diagnosis]") {
+  const Case c = make_case("obstacle", json::array({{{"circle", {{"center", {7, 1.5}}, {"radius", 0.5}}}}}));
+  const DiagnoseJob job = parse_diagnose_job(request_for(c));
+  const DiagnosisResult r = run_diagnosis(job, [](const std::string& s) { std::printf("  %s\n", s.c_str()); });
+  const fs::path out = c.dir / "out";
+  write_diagnosis(job, r, out.string());
+  REQUIRE(r.terms.size() == 1);
+  const Term& t = r.terms[0];
+  CHECK(std::string(t.law->type()) == "obstacle");
+  const double miss = std::hypot(t.params[0] - 7, t.params[1] - 1.5);
+  std::printf("obstacle found at (%.2f, %.2f), radius %.2f (truth (7, 1.5), 0.5): %.2f m off; held-out %.3f -> %.3f m\n",
+              t.params[0], t.params[1], t.params[2], miss, r.region_before, r.region_after);
+  CHECK(miss < 1.0);
+  CHECK(r.region_after < 0.9 * r.region_before);
+
+  // The report: exactly the documented keys and types.
+  const json rep = load_json_file((out / "report.json").string());
+  const json& v = rep.at("verdict");
+  CHECK(v.at("type") == "obstacle");
+  for (const char* k : {"x", "y", "radius"}) CHECK(v.at("params").at(k).is_number());
+  CHECK(v.at("heldout_error_before").is_number());
+  CHECK(v.at("heldout_error_after").is_number());
+  CHECK(v.at("heldout_error_after").get<double>() < v.at("heldout_error_before").get<double>());
+  CHECK(!v.at("explanation").get<std::string>().empty());
+  CHECK(v.at("error_unit").get<std::string>().find("m:") == 0);
+  REQUIRE(!rep.at("regions").empty());
+  for (const auto& g : rep.at("regions")) {
+    CHECK(g.at("center").size() == 2);
+    CHECK(g.at("radius").get<double>() > 0);
+    CHECK(g.at("t_end").get<double>() > g.at("t_start").get<double>());
+    CHECK(g.at("significance").get<double>() >= 0);
+    CHECK(g.at("significance").get<double>() <= 1);
+  }
+  REQUIRE(!rep.at("hypotheses").empty());
+  for (const auto& h : rep.at("hypotheses")) {
+    CHECK(h.at("type").is_string());
+    CHECK(h.at("params").is_object());
+    CHECK(h.contains("heldout_error"));
+    CHECK(h.contains("score"));
+  }
+  REQUIRE(rep.at("terms").size() == 1);
+  CHECK(rep.at("terms")[0].at("type") == "obstacle");
+  for (const char* f : {"residual_before.png", "residual_after.png", "summary.txt", "scenario.json", "model.json"})
+    CHECK(fs::file_size(out / f) > 0);
+  // The venue with the term is a scenario the simulator runs.
+  const ScenarioDef fitted = ScenarioDef::load((out / "scenario.json").string());
+  CHECK(fitted.terms.size() == 1);
+  Simulation sim(fitted, fitted.model_or_default(), 1);
+  sim.run_steps(10);
+}
+
+TEST_CASE("diagnosis of a recording with nothing concealed finds nothing", "[diagnosis]") {
+  const Case c = make_case("control", json::array());
+  const DiagnoseJob job = parse_diagnose_job(request_for(c));
+  const DiagnosisResult r = run_diagnosis(job);
+  for (const Hypothesis& h : r.hypotheses)
+    std::printf("  control: %s %s\n", h.term.law->type(), h.why.c_str());
+  CHECK(r.terms.empty());
+  write_diagnosis(job, r, (c.dir / "out").string());
+  const json rep = load_json_file((c.dir / "out" / "report.json").string());
+  CHECK(rep.at("verdict").at("type") == "none");
+  CHECK(rep.at("terms").empty());
+}
+
+TEST_CASE("diagnosis requests name what is wrong", "[diagnosis]") {
+  const fs::path dir = fs::path(CROWDMPM_BINARY_DIR) / "tests" / "diagnosis" / "bad";
+  fs::create_directories(dir);
+  const std::string belief = (dir / "belief.json").string(), rec = (dir / "short.txt").string();
+  save_json_file(json::parse(kCorridor), belief);
+  {
+    std::FILE* f = std::fopen(rec.c_str(), "w");
+    std::fprintf(f, "# framerate: 10\n");
+    for (int k = 0; k < 30; ++k) std::fprintf(f, "1 %d %.2f 1.5\n", k, 0.1 * k);
+    std::fclose(f);
+  }
+  auto fails_with = [&](const json& req, const std::string& what) {
+    INFO(req.dump());
+    try {
+      const DiagnoseJob job = parse_diagnose_job(req);
+      run_diagnosis(job);
+      FAIL("no error; expected one naming " << what);
+    } catch (const Error& e) {
+      INFO(e.what());
+      CHECK(std::string(e.what()).find(what) != std::string::npos);
+    }
+  };
+  fails_with({{"scenario", belief}, {"trajectories", rec}, {"options", {{"cel", 1}}}}, "cel");
+  fails_with({{"scenario", belief}, {"trajectories", rec}, {"options", {{"candidates", {"ghost"}}}}}, "ghost");
+  fails_with({{"scenario", belief}, {"trajectories", rec}, {"options", {{"train_share", 2}}}}, "train_share");
+  fails_with({{"scenario", belief}, {"trajectories", rec}, {"options", {{"params", {"nonsense"}}}}}, "nonsense");
+  fails_with({{"scenario", belief}, {"trajectories", (dir / "missing.txt").string()}}, "missing.txt");
+  fails_with({{"scenario", belief}}, "trajectories");
+  fails_with({{"scenario", belief}, {"trajectories", rec}}, "too short to diagnose");
+}
