@@ -204,7 +204,8 @@ struct Comparison {
   double gain = 0, z = 0, score_before = 0, score_after = 0;
 };
 // Paired comparison over people (mean squared error of each, before minus after, in standard
-// errors), and the information criterion n ln(MSE) + k ln(n) with n the people compared.
+// errors), and the information criterion n ln(MSE) + k ln(n) with n the people compared (the
+// effective sample size: one person's errors over overlapping windows are not independent).
 Comparison compare(const ErrorStats& before, const ErrorStats& after, size_t k_before, size_t k_after) {
   Comparison c;
   c.score_after = std::numeric_limits<double>::infinity();
@@ -216,7 +217,8 @@ Comparison compare(const ErrorStats& before, const ErrorStats& after, size_t k_b
   for (const auto& [id, b] : before.person) {
     auto it = after.person.find(id);
     if (it == after.person.end() || !(b.second > 0) || !(it->second.second > 0)) continue;
-    d.push_back(b.first / b.second - it->second.first / it->second.second);
+    const double mb = b.first / b.second, ma = it->second.first / it->second.second;
+    d.push_back(mb - ma);
   }
   c.gain = 1 - after.rms / before.rms;
   if (d.size() < 2) return c;
@@ -357,8 +359,14 @@ Localisation localise(const ScenarioDef& s, const Model& m, const TrajectorySet&
   l.set = recorded_residuals(s, m, t, sp.train_from, sp.train_to, d.residual);
   l.map = bin_residuals(l.set, s.geo, d.residual);
   l.clusters = find_clusters(l.map, l.set, d.residual);
-  for (const auto& r : l.set.velocity) l.global_mean += r.r;
-  if (!l.set.velocity.empty()) l.global_mean /= static_cast<double>(l.set.velocity.size());
+  // The mean residual away from walls (a wall takes up a body force pushing people into it).
+  double n = 0;
+  for (const auto& r : l.set.velocity)
+    if (s.geo.sdf(r.x) > 0.75) {
+      l.global_mean += r.r;
+      n += 1;
+    }
+  if (n > 0) l.global_mean /= n;
   if (!with_null || l.clusters.empty()) return l;
   std::vector<double> maxima;
   for (int k = 0; k < d.null_replicates; ++k) {
@@ -563,7 +571,7 @@ DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& pr
       const bool passes = why.empty();
       say("    " + report_type(cand.law) + ": region " + num(base_region.rms, 3) + " -> " + num(region.rms, 3) + " m, " + h.why);
       res.hypotheses.push_back(h);
-      if (passes && (!best || h.score - h.baseline_score < res.hypotheses[*best].score - res.hypotheses[*best].baseline_score)) {
+      if (passes && (!best || h.heldout_error_global < res.hypotheses[*best].heldout_error_global)) {
         best = res.hypotheses.size() - 1;
         best_err = std::move(err);
         best_fit = f;
@@ -728,7 +736,7 @@ json diagnosis_json(const DiagnoseJob& job, const DiagnosisResult& r) {
           {"regions", regions},
           {"hypotheses", hyps},
           {"terms", terms},
-          {"score_definition", "n ln(MSE) + k ln(n) of the people passing the region, minus the same of the baseline (lower is better); n: independent (person, window) pairs"},
+          {"score_definition", "n ln(MSE) + k ln(n) of the n people passing the hypothesis' region (everyone for a venue-wide term), k its fitted parameters, minus the same of the baseline (lower is better)"},
           {"tracking_noise_m", r.tracking_noise},
           {"split", {{"train_end_s", r.train_end}, {"heldout_start_s", r.heldout_start}, {"heldout_end_s", r.heldout_end},
                      {"train_windows", r.train_windows}, {"heldout_windows", r.heldout_windows}}},

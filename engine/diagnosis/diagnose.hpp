@@ -26,8 +26,8 @@ struct DiagnoseOptions {
   // A term is accepted when, on the held-out part and among the people passing its region
   // (everyone for a venue-wide term), the RMS error falls by at least min_gain (share), the
   // paired gain over people is at least min_gain_z standard errors and the information
-  // criterion n ln(MSE) + k ln(n) falls, while the error of everyone rises by no more than 2%;
-  // the accepted term of a round is the one whose criterion falls most.
+  // criterion n ln(MSE) + k ln(n) there falls, while the error of everyone rises by no more than
+  // 2%; of the terms that pass, the one with the lowest held-out error of everyone is added.
   double min_gain = 0.1;
   double min_gain_z = 3;
   std::vector<std::string> candidates;  // law types to try; empty: all diagnosis candidates
