@@ -294,11 +294,24 @@ std::vector<Term> initial_candidates(const Cluster& c, const Vec2& global_mean, 
   return out;
 }
 
-// The people a region's candidates are judged on: those passing within this distance of its
-// centre (a cluster spans the disturbed flow around an effect; the people it deflects or slows
-// pass nearer its centre).
-double evaluation_radius(double cluster_radius) { return std::max(1.0, 0.5 * cluster_radius); }
-double evaluation_radius(const Cluster& c) { return evaluation_radius(c.radius); }
+// Where a fitted term acts, as a disc (centre, radius in m) whose passers-by judge it: within a
+// metre of an obstacle's rim, within an attractor's or vortex's range (at most 3 m), over a
+// zone's or wall's extent; radius -1 for the venue-wide terms (everyone).
+std::pair<Vec2, double> influence(const Term& t) {
+  const std::string type = report_type(t.law);
+  const auto& p = t.params;
+  if (type == "obstacle") return {Vec2(p[0], p[1]), p[2] + 1.0};
+  if (type == "attractor" || type == "vortex") return {Vec2(p[0], p[1]), std::clamp(p[3], 1.0, 3.0)};
+  if (type == "slow_zone" || type == "counterflow") {
+    const Vec2 lo(p[0], p[1]), hi(p[2], p[3]);
+    return {0.5 * (lo + hi), std::max(1.0, 0.5 * (hi - lo).norm())};
+  }
+  if (type == "wall_friction") {
+    const Vec2 a(p[0], p[1]), b(p[2], p[3]);
+    return {0.5 * (a + b), 0.5 * (b - a).norm() + p[5] + 0.5};
+  }
+  return {Vec2::Zero(), -1.0};
+}
 
 // Why a fitted term cannot be the physics it names (empty if it can): an obstacle must stand in
 // the venue's free space and have a body; one inside a known wall, or of a few centimetres,
@@ -312,10 +325,7 @@ std::string implausible(const Term& t, const Geometry& geo) {
 }
 
 // Terms that act on the whole venue (judged on everyone, tried once a round).
-bool is_global(const Term& t) {
-  const std::string type = report_type(t.law);
-  return type == "drift" || type == "density_speed";
-}
+bool is_global(const Term& t) { return influence(t).second < 0; }
 
 struct FitResult {
   Model model;
@@ -498,14 +508,14 @@ DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& pr
 
   Vec2 first_center = Vec2::Zero();
   double first_radius = -1;
-  bool have_after = false;
+  size_t after_terms = 0;  // accepted terms residual_after was made with (0: none made)
   for (int round = 0; round < std::max(1, d.max_terms); ++round) {
     const ScenarioDef current = with_terms(job.scenario, terms);
     Localisation loc = localise(current, model, t, sp, d, std::max(res.tracking_noise, 0.005), round, true);
     if (round == 0) res.residual_before = loc.map;
     else {
       res.residual_after = loc.map;
-      have_after = true;
+      after_terms = res.terms.size();
     }
     std::vector<const Cluster*> significant;
     for (const Cluster& c : loc.clusters) {
@@ -531,12 +541,9 @@ DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& pr
       const int region_index = c ? static_cast<int>(c - loc.clusters.data()) +
                                        static_cast<int>(res.regions.size() - loc.clusters.size())
                                  : -1;
-      const Membership near = c ? members(sp.heldout, c->center, evaluation_radius(*c)) : everyone;
-      const ErrorStats base_region = stats_of(base_err, sp.heldout, near);
       Hypothesis h;
       h.round = round;
       h.region = region_index;
-      h.baseline_error = base_region.rms;
       std::vector<Term> trial = terms;
       trial.push_back(cand);
       say("  fitting " + report_type(cand.law) + (c ? " at " + point(c->center) : std::string(" (whole venue)")));
@@ -551,6 +558,13 @@ DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& pr
       h.term = f.terms.back();
       h.term.learn.assign(h.term.params.size(), 0);
       f.terms.back() = h.term;
+      // Judged on the people the fitted term acts on (everyone for a venue-wide term).
+      const auto [centre, reach] = influence(h.term);
+      h.judged_center = centre;
+      h.judged_radius = reach;
+      const Membership near = reach < 0 ? everyone : members(sp.heldout, centre, reach);
+      const ErrorStats base_region = stats_of(base_err, sp.heldout, near);
+      h.baseline_error = base_region.rms;
       std::vector<WindowErrors> err = rollout_errors(with_terms(job.scenario, f.terms), f.model, sp.heldout, ds, d.threads);
       const ErrorStats region = stats_of(err, sp.heldout, near), global = stats_of(err, sp.heldout, everyone);
       h.heldout_error = region.rms;
@@ -584,15 +598,14 @@ DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& pr
     model = best_fit.model;
     base_err = std::move(best_err);
     res.terms.push_back(h.term);
-    if (res.terms.size() == 1 && h.region >= 0) {
-      const Region& reg = res.regions[static_cast<size_t>(h.region)];
-      first_center = reg.center;
-      first_radius = evaluation_radius(reg.radius);
+    if (res.terms.size() == 1) {
+      first_center = h.judged_center;
+      first_radius = h.judged_radius;
     }
     say("accepted " + report_type(h.term.law) + ": " + h.why);
   }
   res.model = model;
-  if (!res.terms.empty() && !have_after) {
+  if (!res.terms.empty() && after_terms != res.terms.size()) {
     const ScenarioDef current = with_terms(job.scenario, terms);
     res.residual_after = localise(current, model, t, sp, d, res.tracking_noise, d.max_terms, false).map;
   } else if (res.terms.empty()) {
@@ -706,7 +719,7 @@ json diagnosis_json(const DiagnoseJob& job, const DiagnosisResult& r) {
   verdict["error_unit"] = error_unit(job.options) +
                           (r.terms.empty() ? ", everyone"
                                            : ", people passing within " + num(r.region_radius, 1) + " m of " + point(r.region_center) +
-                                                 ", the first term's region (global figures beside)");
+                                                 ", where the first term acts (global figures beside)");
   verdict["explanation"] = r.explanation;
   json regions = json::array();
   for (const Region& g : r.regions)
@@ -719,6 +732,9 @@ json diagnosis_json(const DiagnoseJob& job, const DiagnosisResult& r) {
                     {"heldout_error_global", fin(h.heldout_error_global)}, {"baseline_error", fin(h.baseline_error)},
                     {"score", fin(h.score - h.baseline_score)}, {"gain", fin(h.gain)}, {"gain_z", fin(h.gain_z)},
                     {"round", h.round + 1}, {"region", h.region}, {"accepted", h.accepted}, {"reason", h.why},
+                    {"judged_on", h.judged_radius < 0 ? json("everyone")
+                                                      : json({{"center", {h.judged_center.x(), h.judged_center.y()}},
+                                                              {"radius", h.judged_radius}})},
                     {"term", h.term.to_json()}});
   }
   json terms = json::array();

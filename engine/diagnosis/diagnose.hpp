@@ -54,7 +54,9 @@ struct Region {
 struct Hypothesis {
   Term term;
   int round = 0, region = -1;         // the region it was initialised from (-1: the whole venue)
-  double heldout_error = 0;           // RMS position error of the people passing the region, m
+  Vec2 judged_center = Vec2::Zero();  // the people passing within judged_radius of it judge the term
+  double judged_radius = -1;          // m (-1: everyone)
+  double heldout_error = 0;           // RMS position error of the people passing there, m
   double heldout_error_global = 0;    // the same over everyone, m
   double baseline_error = 0;          // the baseline's regional error it is compared with, m
   double gain = 0, gain_z = 0, score = 0, baseline_score = 0;
