@@ -12,11 +12,6 @@
 namespace crowdmpm {
 namespace {
 
-double gaussian(Rng& rng) {
-  const double u1 = std::max(rng.uniform(), 1e-300), u2 = rng.uniform();
-  return std::sqrt(-2 * std::log(u1)) * std::cos(2 * M_PI * u2);
-}
-
 // Recorded positions of some people at one frame (NaN where not recorded).
 std::vector<Vec2> recorded_at(const TrajectorySet& t, long frame, const std::vector<long>& ids) {
   const double nan = std::numeric_limits<double>::quiet_NaN();
@@ -116,18 +111,23 @@ ResidualSet null_residuals(const ScenarioDef& scenario, const Model& model, cons
     const ObservedState s = observe_at(t, f0, o.velocity_window, o.speed_window);
     if (s.ids.empty()) return out;
     Rng rng(seed * 0x9E3779B97F4A7C15ULL + static_cast<uint64_t>(f0) * 7919 + 1);
+    auto normal2 = [&rng]() {  // separate statements: the order of the draws is fixed
+      const double a = rng.normal();
+      const double b = rng.normal();
+      return Vec2(a, b);
+    };
     const auto truth = predict(s, {hm, h});
     ObservedState seen = s;
     for (size_t k = 0; k < seen.ids.size(); ++k) {
-      seen.x[k] += noise * Vec2(gaussian(rng), gaussian(rng));
-      seen.v[k] += v_noise * Vec2(gaussian(rng), gaussian(rng));
+      seen.x[k] += noise * normal2();
+      seen.v[k] += v_noise * normal2();
     }
     const auto sim = predict(seen, {h});
     const double tm = static_cast<double>(f0) / t.framerate + hm, te = static_cast<double>(f0) / t.framerate + h;
     for (size_t k = 0; k < s.ids.size(); ++k) {
       if (!finite(truth[1][k]) || !finite(truth[0][k]) || !finite(sim[0][k])) continue;
       if (near_source(scenario, truth[0][k], o.source_margin)) continue;
-      const Vec2 end = truth[1][k] + noise * Vec2(gaussian(rng), gaussian(rng));
+      const Vec2 end = truth[1][k] + noise * normal2();
       out.velocity.push_back({truth[0][k], tm, (end - sim[0][k]) / h, s.ids[k]});
       out.positions.push_back({end, te, 1.0});
       out.positions.push_back({sim[0][k], te, -1.0});

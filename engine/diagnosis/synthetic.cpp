@@ -16,15 +16,12 @@ void write_noisy_recording(const ScenarioDef& truth, const Model& model, double 
   f << "# framerate: " << truth.output_rate << "\n# unit: m\n# " << truth.name << " run by " << material_name(model.material)
     << " (" << model.name << "), tracking noise " << noise << " m\n";
   Rng rng(seed);
-  auto gaussian = [&]() {
-    const double u1 = std::max(rng.uniform(), 1e-300), u2 = rng.uniform();
-    return std::sqrt(-2 * std::log(u1)) * std::cos(2 * M_PI * u2);
-  };
   char line[128];
   for (long frame = 0;; ++frame) {
     const World& w = sim.world();
     for (size_t p = 0; p < w.size(); ++p) {
-      const double x = w.x[p].x() + noise * gaussian(), y = w.x[p].y() + noise * gaussian();
+      const double x = w.x[p].x() + noise * rng.normal();
+      const double y = w.x[p].y() + noise * rng.normal();
       std::snprintf(line, sizeof line, "%llu %ld %.4f %.4f\n", static_cast<unsigned long long>(w.id[p]), frame, x, y);
       f << line;
     }

@@ -17,6 +17,12 @@ uint64_t Rng::next() {
 
 double Rng::uniform() { return static_cast<double>(next() >> 11) * 0x1.0p-53; }
 
+double Rng::normal() {
+  const double u1 = uniform();  // separate statements: the order of the draws is fixed
+  const double u2 = uniform();
+  return std::sqrt(-2 * std::log(1 - u1)) * std::cos(2 * M_PI * u2);
+}
+
 static void check_time_step(const ScenarioDef& s, const Model& m, double dt) {
   if (!(dt > 0 && dt <= 0.1)) throw Error(s.source + ": time.dt: must be in (0, 0.1] s, got " + format_number(dt));
   if (dt * m.params.max_speed > 0.25 * s.cell_size)
@@ -324,10 +330,7 @@ void Simulation::place_group(size_t gi) {
 double Simulation::draw_speed(const GroupDef& g) {
   if (!(g.speed_sd > 0)) return g.desired_speed;
   for (int tries = 0; tries < 100; ++tries) {
-    const double u1 = rng_.uniform();  // separate statements: see place_group
-    const double u2 = rng_.uniform();
-    const double z = std::sqrt(-2 * std::log(1 - u1)) * std::cos(2 * M_PI * u2);
-    const double v = g.desired_speed + g.speed_sd * z;
+    const double v = g.desired_speed + g.speed_sd * rng_.normal();
     if (v >= g.speed_min && v <= g.speed_max) return v;
   }
   return g.desired_speed;

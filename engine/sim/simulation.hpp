@@ -36,6 +36,7 @@ class Rng {
   explicit Rng(uint64_t seed) : state_(seed) {}
   uint64_t next();
   double uniform();  // [0, 1)
+  double normal();   // standard normal (Box-Muller from two uniforms, drawn in that order)
   uint64_t state() const { return state_; }
   void set_state(uint64_t s) { state_ = s; }
  private:

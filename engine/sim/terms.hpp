@@ -171,6 +171,16 @@ bool centred_offset(const T* p, const T x[2], T& rx, T& ry, T& d) {
   return value_of(d) >= 1e-9 && value_of(d) <= value_of(p[3]);
 }
 
+// Laws over a rectangle with smooth edges (slow_zone, counterflow): p[0..3] = xmin, ymin, xmax,
+// ymax, and s(x - xmin) s(xmax - x) s(y - ymin) s(ymax - y), s(u) = 1 / (1 + exp(-4 u / edge))
+// (from 12% to 88% over one edge width), so that every corner has a gradient.
+template <class T>
+T smooth_box(const T* p, const T x[2], const T& edge) {
+  const T k = T(4) / edge;
+  auto s = [&](const T& u) { return T(1) / (T(1) + exp(-(k * u))); };
+  return s(x[0] - p[0]) * s(p[2] - x[0]) * s(x[1] - p[1]) * s(p[3] - x[1]);
+}
+
 // Every law the engine knows, by type name.
 const std::vector<const TermLaw*>& term_laws();
 const TermLaw* find_term_law(const std::string& type);  // nullptr if unknown

@@ -37,9 +37,7 @@ class Counterflow : public TermFormula<Counterflow> {
   }
   template <class T>
   void formula(const T* p, const T x[2], const T*, const TermPoint& pt, T a[2], T& f) const {
-    const T k = T(4) / p[7];
-    auto s = [&](const T& u) { return T(1) / (T(1) + exp(-(k * u))); };
-    const T r = s(x[0] - p[0]) * s(p[2] - x[0]) * s(x[1] - p[1]) * s(p[3] - x[1]);
+    const T r = smooth_box(p, x, p[7]);
     const T w = T(1) / (T(1) + exp((T(draw(pt.id)) - p[5]) / T(0.02)));
     const T angle = p[4] * T(M_PI / 180);
     const T wr = w * r;

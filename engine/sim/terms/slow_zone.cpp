@@ -24,9 +24,7 @@ class SlowZone : public TermFormula<SlowZone> {
   }
   template <class T>
   void formula(const T* p, const T x[2], const T*, const TermPoint&, T*, T& f) const {
-    const T k = T(4) / p[5];
-    auto s = [&](const T& u) { return T(1) / (T(1) + exp(-(k * u))); };
-    f = T(1) + (p[4] - T(1)) * s(x[0] - p[0]) * s(p[2] - x[0]) * s(x[1] - p[1]) * s(p[3] - x[1]);
+    f = T(1) + (p[4] - T(1)) * smooth_box(p, x, p[5]);
   }
 };
 }  // namespace
