@@ -237,10 +237,7 @@ Comparison compare(const ErrorStats& before, const ErrorStats& after, size_t k_b
 // ---------------------------------------------------------------------------------------------
 // Candidates.
 
-Term make_term(const json& j) {
-  const json copy = j;
-  return Term::parse(JsonReader(copy, "candidate"), {});
-}
+Term make_term(const json& j) { return Term::parse(JsonReader(j, "candidate"), {}); }
 
 double clampd(double v, double lo, double hi) { return std::max(lo, std::min(hi, v)); }
 
@@ -502,12 +499,13 @@ DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& pr
   const std::vector<std::string> types = d.candidates.empty() ? diagnosis_candidates() : d.candidates;
   const DesiredSpeed ds = d.residual.desired_speed;
   const Membership everyone = members(sp.heldout, Vec2::Zero(), -1);
-  std::vector<WindowErrors> base_err = rollout_errors(with_terms(job.scenario, terms), model, sp.heldout, ds, d.threads);
+  // The fitted baseline's held-out errors: what every round's best term is compared with first,
+  // and the "before" of the report.
+  const std::vector<WindowErrors> baseline_err = rollout_errors(with_terms(job.scenario, terms), model, sp.heldout, ds, d.threads);
+  std::vector<WindowErrors> base_err = baseline_err;
   res.heldout_before = stats_of(base_err, sp.heldout, everyone).rms;
   say("baseline fitted: held-out error " + num(res.heldout_before, 3) + " m");
 
-  Vec2 first_center = Vec2::Zero();
-  double first_radius = -1;
   size_t after_terms = 0;  // accepted terms residual_after was made with (0: none made)
   for (int round = 0; round < std::max(1, d.max_terms); ++round) {
     const ScenarioDef current = with_terms(job.scenario, terms);
@@ -599,8 +597,8 @@ DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& pr
     base_err = std::move(best_err);
     res.terms.push_back(h.term);
     if (res.terms.size() == 1) {
-      first_center = h.judged_center;
-      first_radius = h.judged_radius;
+      res.region_center = h.judged_center;
+      res.region_radius = h.judged_radius;
     }
     say("accepted " + report_type(h.term.law) + ": " + h.why);
   }
@@ -611,12 +609,8 @@ DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& pr
   } else if (res.terms.empty()) {
     res.residual_after = res.residual_before;
   }
-  res.region_center = first_center;
-  res.region_radius = first_radius;
-  const Membership region = res.terms.empty() ? everyone : members(sp.heldout, first_center, first_radius);
-  const std::vector<WindowErrors> before = rollout_errors(with_terms(job.scenario, job.scenario.terms), res.baseline,
-                                                          sp.heldout, ds, d.threads);
-  res.region_before = stats_of(before, sp.heldout, region).rms;
+  const Membership region = res.terms.empty() ? everyone : members(sp.heldout, res.region_center, res.region_radius);
+  res.region_before = stats_of(baseline_err, sp.heldout, region).rms;
   res.region_after = stats_of(base_err, sp.heldout, region).rms;
   res.heldout_after = stats_of(base_err, sp.heldout, everyone).rms;
   res.explanation = explain(d, res);
