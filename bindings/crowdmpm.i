@@ -26,9 +26,35 @@
 %newobject crowdmpm_binding::World::from_snapshot;
 
 #ifdef SWIGJAVA
+// The jar carries its native libraries (org/crowdmpm/native/<os>-<arch>/): they are extracted to
+// a temporary folder and loaded from there, libcrowdmpm.so.1 first so that the JNI library finds
+// it by its SONAME. Without them in the jar (a build-tree jar), java.library.path is used.
 %pragma(java) jniclasscode=%{
   static {
-    System.loadLibrary("crowdmpm_java");
+    String os = System.getProperty("os.name", "").toLowerCase();
+    String arch = System.getProperty("os.arch", "");
+    if (arch.equals("amd64")) arch = "x86_64";
+    String dir = "/org/crowdmpm/native/" + (os.startsWith("linux") ? "linux" : os) + "-" + arch + "/";
+    String[] libs = {"libcrowdmpm.so.1", "libcrowdmpm_java.so"};
+    if (crowdmpmJNI.class.getResource(dir + libs[1]) != null) {
+      try {
+        java.nio.file.Path tmp = java.nio.file.Files.createTempDirectory("crowdmpm-native");
+        tmp.toFile().deleteOnExit();
+        for (String name : libs) {
+          java.nio.file.Path file = tmp.resolve(name);
+          try (java.io.InputStream in = crowdmpmJNI.class.getResourceAsStream(dir + name)) {
+            if (in == null) throw new UnsatisfiedLinkError("CrowdMPM: the jar lacks " + dir + name);
+            java.nio.file.Files.copy(in, file);
+          }
+          file.toFile().deleteOnExit();
+          System.load(file.toAbsolutePath().toString());
+        }
+      } catch (java.io.IOException e) {
+        throw new UnsatisfiedLinkError("CrowdMPM: cannot extract the native libraries from the jar: " + e);
+      }
+    } else {
+      System.loadLibrary("crowdmpm_java");
+    }
   }
 %}
 #endif
@@ -103,6 +129,22 @@ World.positions_array = _positions_array
 World.velocities_array = _velocities_array
 World.pressures_array = _pressures_array
 World.agent_ids_array = _agent_ids_array
+
+
+def _add_agents(self, positions, target, velocities=None, desired_speed=1.3):
+    """add_agents(positions, target, velocities=None, desired_speed=1.3) -> numpy int64 array of
+    the new ids. positions: array-like (n, 2), m; velocities: (n, 2), m/s, or None for rest;
+    target: exit or goal id, or 'nearest_exit'."""
+    p = _np.asarray(positions, dtype=_np.float64)
+    if p.ndim != 2 or p.shape[1] != 2:
+        raise ValueError("add_agents: positions must have shape (n, 2), got %s" % (p.shape,))
+    v = _np.zeros_like(p) if velocities is None else _np.asarray(velocities, dtype=_np.float64)
+    if v.shape != p.shape:
+        raise ValueError("add_agents: velocities must have the shape of positions %s, got %s" % (p.shape, v.shape))
+    return _np.array([self.add_agent(float(x), float(y), target, float(vx), float(vy), desired_speed)
+                      for (x, y), (vx, vy) in zip(p, v)], dtype=_np.int64)
+
 World.field_array = _field_array
+World.add_agents = _add_agents
 %}
 #endif
