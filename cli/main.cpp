@@ -101,6 +101,7 @@ const char* kSimulateHelp =
     "\n"
     "Runs SCENARIO (a crowdmpm-scenario JSON file) and writes into DIR:\n"
     "  trajectories.txt   PeTrack text: id frame x y z (metres), '# framerate:' header\n"
+    "  trajectories.sqlite  the same in JuPedSim's SQLite format (version 2, read by PedPy)\n"
     "  density.npy, velocity.npy, pressure.npy, fields.json\n"
     "                     per-frame grid fields (float32, shape frames x ny x nx [x 2])\n"
     "  pressure_mean.png, pressure_peak.png, density_mean.png, final.png\n"

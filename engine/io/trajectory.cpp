@@ -10,6 +10,7 @@
 
 #include "engine/core/error.hpp"
 #include "engine/core/json_reader.hpp"
+#include "engine/io/jupedsim_sqlite.hpp"
 
 namespace crowdmpm {
 
@@ -35,6 +36,7 @@ double unit_scale(const std::string& u) {
 }  // namespace
 
 TrajectorySet TrajectorySet::read(const std::string& path, double framerate_override, const InputPolicy& policy) {
+  if (is_sqlite_file(path)) return read_jupedsim_sqlite(path, framerate_override, policy);
   return parse(read_input_file(path, policy), path, framerate_override);
 }
 
@@ -104,15 +106,19 @@ TrajectorySet TrajectorySet::parse(const std::string& text, const std::string& s
   }
   if (framerate_override > 0) t.framerate = framerate_override;
   if (t.framerate <= 0) throw Error(source + ": no \"# framerate: N\" header (give the frame rate explicitly)");
-  if (t.points.empty()) throw Error(source + ": no trajectory rows");
-  std::stable_sort(t.points.begin(), t.points.end(), [](const TrackPoint& a, const TrackPoint& b) {
+  t.sort_checked();
+  return t;
+}
+
+void TrajectorySet::sort_checked() {
+  if (points.empty()) throw Error(source + ": no trajectory rows");
+  std::stable_sort(points.begin(), points.end(), [](const TrackPoint& a, const TrackPoint& b) {
     return a.frame != b.frame ? a.frame < b.frame : a.id < b.id;
   });
-  for (size_t i = 1; i < t.points.size(); ++i)
-    if (t.points[i].frame == t.points[i - 1].frame && t.points[i].id == t.points[i - 1].id)
-      throw Error(source + ": person " + std::to_string(t.points[i].id) + " appears twice in frame " +
-                  std::to_string(t.points[i].frame));
-  return t;
+  for (size_t i = 1; i < points.size(); ++i)
+    if (points[i].frame == points[i - 1].frame && points[i].id == points[i - 1].id)
+      throw Error(source + ": person " + std::to_string(points[i].id) + " appears twice in frame " +
+                  std::to_string(points[i].frame));
 }
 
 size_t TrajectorySet::person_count() const {

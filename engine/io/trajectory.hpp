@@ -28,8 +28,13 @@ class TrajectorySet {
   // mm; metres if none). framerate_override > 0 replaces the header's frame rate, which is
   // otherwise required. Malformed rows, non-finite numbers, duplicate (id, frame) pairs and a
   // missing frame rate are errors naming file and line.
+  // A JuPedSim SQLite file (engine/io/jupedsim_sqlite.hpp) is recognised by its header and read
+  // as such.
   static TrajectorySet read(const std::string& path, double framerate_override = 0, const InputPolicy& policy = {});
   static TrajectorySet parse(const std::string& text, const std::string& source, double framerate_override = 0);
+
+  // Sorts the points by (frame, id); throws Error naming source for no rows or a duplicate.
+  void sort_checked();
 
   long frame_min() const { return points.empty() ? 0 : points.front().frame; }
   long frame_max() const { return points.empty() ? 0 : points.back().frame; }

@@ -7,6 +7,7 @@
 #include <fstream>
 #include <memory>
 
+#include "engine/io/jupedsim_sqlite.hpp"
 #include "engine/io/render.hpp"
 #include "engine/sim/snapshot.hpp"
 
@@ -74,6 +75,7 @@ RunSummary run_simulation(Simulation& sim, const RunOptions& opt) {
   RunSummary out;
   const bool files = !opt.out_dir.empty();
   std::unique_ptr<TrajectoryWriter> traj;
+  std::unique_ptr<JupedsimSqliteWriter> traj_sqlite;
   std::unique_ptr<NpyWriter> npy_density, npy_velocity, npy_pressure;
   std::unique_ptr<ParticleVideo> video;
   View view = View::fit(s.geo, s.outputs.pixels_per_metre);
@@ -90,6 +92,12 @@ RunSummary run_simulation(Simulation& sim, const RunOptions& opt) {
     if (s.outputs.trajectories)
       traj = std::make_unique<TrajectoryWriter>(file("trajectories.txt"), s.output_rate,
                                                 "crowdmpm simulate " + s.source + " (scenario \"" + s.name + "\")");
+    if (s.outputs.trajectories_sqlite) {
+      const Vec2 lo = s.geo.lo, hi = s.geo.hi;
+      traj_sqlite = std::make_unique<JupedsimSqliteWriter>(file("trajectories.sqlite"), s.output_rate,
+                                                           rectangle_wkt(lo.x(), lo.y(), hi.x(), hi.y()), lo.x(),
+                                                           lo.y(), hi.x(), hi.y());
+    }
     if (s.outputs.fields) {
       const Grid& g = sim.grid();
       npy_density = std::make_unique<NpyWriter>(file("density.npy"), g.ny, g.nx, 1);
@@ -113,6 +121,7 @@ RunSummary run_simulation(Simulation& sim, const RunOptions& opt) {
     }
     last_frame = frame;
     if (traj) traj->write_frame(sim.world(), frame);
+    if (traj_sqlite) traj_sqlite->write_frame(sim.world(), frame);
     if (npy_density) {
       buf.assign(f.density.begin(), f.density.end());
       npy_density->write_frame(buf);
@@ -147,6 +156,7 @@ RunSummary run_simulation(Simulation& sim, const RunOptions& opt) {
   out.metrics = metrics.to_json(sim);
   if (files) {
     if (traj) traj->close();
+    if (traj_sqlite) traj_sqlite->close();
     if (npy_density) {
       npy_density->close();
       npy_velocity->close();

@@ -272,8 +272,9 @@ ScenarioDef ScenarioDef::parse(const json& j, const std::string& source, const s
 
   if (auto o = r.get("outputs")) {
     o->require_object();
-    o->allow_only({"trajectories", "fields", "pictures", "video", "metrics", "pixels_per_metre", "pressure_max", "density_max"});
+    o->allow_only({"trajectories", "trajectories_sqlite", "fields", "pictures", "video", "metrics", "pixels_per_metre", "pressure_max", "density_max"});
     s.outputs.trajectories = o->boolean("trajectories", true);
+    s.outputs.trajectories_sqlite = o->boolean("trajectories_sqlite", true);
     s.outputs.fields = o->boolean("fields", true);
     s.outputs.pictures = o->boolean("pictures", true);
     s.outputs.video = o->boolean("video", true);

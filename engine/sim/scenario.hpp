@@ -43,6 +43,7 @@ struct MeasurementArea {
 
 struct OutputsDef {
   bool trajectories = true, fields = true, pictures = true, video = true, metrics = true;
+  bool trajectories_sqlite = true;  // trajectories.sqlite (JuPedSim format) beside trajectories.txt
   double pixels_per_metre = 0;  // 0: chosen from the domain size
   double pressure_max = 0;      // colour scale of the video; 0: chosen from the model stiffness
   double density_max = 8;       // persons/m^2, colour scale of density pictures
