@@ -18,6 +18,7 @@
 #include "engine/vision/synthetic.hpp"
 #include "engine/vision/video_job.hpp"
 #include "engine/vision/video_learn.hpp"
+#include "engine/observe/analyze.hpp"
 
 using namespace crowdmpm;
 
@@ -56,6 +57,10 @@ const char* kUsage =
     "                      find physics the scenario lacks: locate where the fitted model\n"
     "                      and the recording disagree, fit candidate terms, keep those that\n"
     "                      lower the held-out error (report.json, pictures, summary.txt)\n"
+    "  analyze TRAJECTORIES --out DIR (--spec MEASUREMENTS.json | --scenario S)\n"
+    "                      PedPy-style measurements of any trajectory file (text or JuPedSim\n"
+    "                      SQLite): classic and Voronoi density and speed, N(t) over lines,\n"
+    "                      fundamental diagram, level of service, crowd pressure\n"
     "  help [COMMAND]      show help\n"
     "\n"
     "Run 'crowdmpm <command> --help' for the options of one command.\n"
@@ -264,6 +269,27 @@ const char* kRenderHelp =
     "  --model MODEL      crowdmpm-model JSON instead of the scenario's\n"
     "  --threads N        worker threads (default 1)\n";
 
+const char* kAnalyzeHelp =
+    "usage: crowdmpm analyze TRAJECTORIES --out DIR (--spec MEASUREMENTS.json | --scenario S)\n"
+    "\n"
+    "Measures a trajectory file (PeTrack text or JuPedSim SQLite, real or simulated) the way\n"
+    "PedPy and JPSreport do (docs/analyze.md). --spec names the walkable area, measurement\n"
+    "areas and lines; --scenario takes its measurement areas and its domain instead. Writes:\n"
+    "  area_<id>.csv       per frame: people inside, classic and Voronoi density (persons/m2)\n"
+    "                      and speed (m/s), Fruin level of service (A-F) of the Voronoi density\n"
+    "  fd_<id>.csv         fundamental diagram: mean speed and specific flow per density bin\n"
+    "  nt_<id>.csv         cumulative count N(t) of people crossing each line\n"
+    "  crowd_pressure.csv, crowd_pressure.png\n"
+    "                      Helbing's crowd pressure (local density x local velocity variance,\n"
+    "                      1/s2) in the window with the highest peak\n"
+    "  summary.json        means, peaks, level-of-service shares, crossings, mean flows\n"
+    "\n"
+    "options:\n"
+    "  --spec FILE        measurement definitions (JSON, docs/analyze.md)\n"
+    "  --scenario S       a scenario whose measurement areas and domain are used\n"
+    "  --frame-step N     frames on each side for individual speeds (default 5, or the spec's)\n"
+    "  --framerate F      frames per second, replacing the file's\n";
+
 const char* kValidateHelp =
     "usage: crowdmpm validate SCENARIO [--model MODEL]\n"
     "\n"
@@ -288,6 +314,9 @@ struct Args {
   bool stride_given = false;
   InputPolicy input;  // --max-input-mb, --allow-outside-paths
   std::string save_snapshot, resume;
+  std::string spec;        // analyze
+  long frame_step = 0;     // analyze: 0 = the spec's
+  double framerate = 0;    // analyze: 0 = the file's
   double snapshot_at = -1;
   // flow, render-video
   VideoSource video;
@@ -332,6 +361,9 @@ Args parse_args(int argc, char** argv, int first) {
     };
     if (s == "--help" || s == "-h") a.help = true;
     else if (s == "--out") a.out = value("--out");
+    else if (s == "--spec") a.spec = value("--spec");
+    else if (s == "--frame-step") a.frame_step = static_cast<long>(parse_double(s, value("--frame-step"), 1, 1000, "a whole number of frames in [1, 1000]"));
+    else if (s == "--framerate") a.framerate = parse_double(s, value("--framerate"), 0.01, 10000, "frames per second in [0.01, 10000]");
     else if (s == "--model") {
       a.models.push_back(value("--model"));
       a.model = a.models.front();
@@ -845,6 +877,33 @@ int cmd_diagnose(const Args& a) {
   return 0;
 }
 
+int cmd_analyze(const Args& a) {
+  if (a.help) { std::fputs(kAnalyzeHelp, stdout); return 0; }
+  if (a.positional.size() != 1) usage_error("analyze needs exactly one TRAJECTORIES file");
+  if (a.out.empty()) usage_error("analyze needs --out DIR");
+  if (a.spec.empty() == a.scenario.empty()) usage_error("analyze needs --spec FILE or --scenario S (one of them)");
+  if (a.frame_step != static_cast<long>(std::floor(static_cast<double>(a.frame_step)))) usage_error("--frame-step must be whole");
+  AnalysisSpec spec = !a.spec.empty() ? AnalysisSpec::from_json(load_json_file(a.spec, a.input), a.spec)
+                                      : AnalysisSpec::from_scenario(a.scenario, a.input);
+  if (a.frame_step > 0) spec.frame_step = a.frame_step;
+  const TrajectorySet t = TrajectorySet::read(a.positional[0], a.framerate, a.input);
+  std::printf("%s: %zu people, frames %ld-%ld at %g fps\n", a.positional[0].c_str(), t.person_count(), t.frame_min(),
+              t.frame_max(), t.framerate);
+  const json summary = run_analysis(t, spec, a.out);
+  for (const auto& area : summary["areas"])
+    std::printf("area %s: mean density %.3f (classic) %.3f (Voronoi) persons/m2, peak %.3f (Voronoi)\n",
+                area["id"].get<std::string>().c_str(), area["mean_classic_density"].get<double>(),
+                area["mean_voronoi_density"].get<double>(), area["max_voronoi_density"].get<double>());
+  for (const auto& line : summary["lines"])
+    std::printf("line %s: %ld crossings, mean flow %.3f persons/s\n", line["id"].get<std::string>().c_str(),
+                line["crossings"].get<long>(), line["mean_flow"].get<double>());
+  if (summary.contains("crowd_pressure"))
+    std::printf("crowd pressure: peak %.4f 1/s2 at (%.1f, %.1f) m\n", summary["crowd_pressure"]["max"].get<double>(),
+                summary["crowd_pressure"]["at"][0].get<double>(), summary["crowd_pressure"]["at"][1].get<double>());
+  std::printf("wrote %s/summary.json\n", a.out.c_str());
+  return 0;
+}
+
 int cmd_validate(const Args& a) {
   if (a.help) { std::fputs(kValidateHelp, stdout); return 0; }
   if (a.positional.size() != 1) usage_error("validate needs exactly one SCENARIO file");
@@ -876,6 +935,7 @@ int main(int argc, char** argv) {
                  : sub == "flow"     ? kFlowHelp
                  : sub == "render-video" ? kRenderHelp
                  : sub == "diagnose" ? kDiagnoseHelp
+                 : sub == "analyze"  ? kAnalyzeHelp
                                      : kUsage,
                  stdout);
       return 0;
@@ -888,6 +948,7 @@ int main(int argc, char** argv) {
     if (cmd == "flow") return cmd_flow(a);
     if (cmd == "render-video") return cmd_render_video(a);
     if (cmd == "diagnose") return cmd_diagnose(a);
+    if (cmd == "analyze") return cmd_analyze(a);
     usage_error("unknown command '" + cmd + "'");
   } catch (const Error& e) {
     std::fprintf(stderr, "%scrowdmpm: error: %s\n", g_progress_line ? "\n" : "", e.what());

@@ -32,7 +32,7 @@ contains() {  # contains NAME TEXT : $out must contain TEXT
 
 check "help" 0 "$cli" help
 contains "help lists train" "train --scenario"
-for c in simulate validate predict train diagnose; do
+for c in simulate validate predict train diagnose analyze; do
   check "help $c" 0 "$cli" "$c" --help
   contains "help $c" "usage: crowdmpm $c"
 done
@@ -173,6 +173,33 @@ contains "diagnose bad options" "--options must be a JSON object"
 check "diagnose option out of range" 1 "$cli" diagnose --scenario "$src/scenarios/bottleneck.json" --observed "$work/sim/trajectories.txt" \
   --out "$work/diag2" --options '{"cell": -1}'
 contains "diagnose option out of range" "options.cell"
+
+# analyze: the simulated run's JuPedSim SQLite file with the scenario's measurement areas, the
+# reference AO_300 recording with its spec (when ../shared/data is there), and bad input.
+[ -s "$work/sim/trajectories.sqlite" ] || { echo "FAIL simulate: trajectories.sqlite missing"; failures=$((failures + 1)); }
+check "analyze sqlite" 0 "$cli" analyze "$work/sim/trajectories.sqlite" --scenario "$src/scenarios/bottleneck.json" --out "$work/an"
+for f in summary.json crowd_pressure.csv crowd_pressure.png; do
+  [ -s "$work/an/$f" ] || { echo "FAIL analyze: $f missing"; failures=$((failures + 1)); }
+done
+contains "analyze sqlite" "wrote $work/an/summary.json"
+ao="$src/../shared/data/reference/jpsreport_bottleneck_AO_300/traj.txt"
+if [ -f "$ao" ]; then
+  check "analyze AO_300" 0 "$cli" analyze "$ao" --spec "$src/tests/data/ao300_measurement.json" --out "$work/ao"
+  contains "analyze AO_300" "line line4: 348 crossings"
+  for f in area_bottleneck.csv fd_bottleneck.csv nt_line2.csv nt_line4.csv; do
+    [ -s "$work/ao/$f" ] || { echo "FAIL analyze AO_300: $f missing"; failures=$((failures + 1)); }
+  done
+else
+  echo "SKIP analyze AO_300: ../shared/data is absent"
+fi
+check "analyze without spec" 2 "$cli" analyze "$work/sim/trajectories.txt" --out "$work/an2"
+contains "analyze without spec" "analyze needs --spec FILE or --scenario S"
+printf '{"areas": [{"id": "a b", "rect": [0, 0, 1, 1]}]}' > "$work/bad_spec.json"
+check "analyze bad area id" 1 "$cli" analyze "$work/sim/trajectories.txt" --spec "$work/bad_spec.json" --out "$work/an2"
+contains "analyze bad area id" 'areas[0]: id "a b" must be'
+printf '{"areas": [{"id": "bow", "polygon": [[0, 0], [1, 1], [1, 0], [0, 1]]}]}' > "$work/bad_spec.json"
+check "analyze self-intersecting area" 1 "$cli" analyze "$work/sim/trajectories.txt" --spec "$work/bad_spec.json" --out "$work/an2"
+contains "analyze self-intersecting area" "areas[0]"
 
 if [ "$failures" -ne 0 ]; then
   echo "$failures CLI check(s) failed"

@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <sstream>
 
 #include "engine/io/jupedsim_sqlite.hpp"
 #include "support.hpp"
@@ -160,4 +161,147 @@ TEST_CASE("JuPedSim SQLite input errors name the file and what is wrong", "[inte
   { std::ofstream(path, std::ios::binary | std::ios::trunc) << std::string("SQLite format 3\0garbage", 23); }
   CHECK_THROWS_WITH(TrajectorySet::read(path), Catch::Contains(path));
   std::filesystem::remove(path);
+}
+
+// ---- PedPy-style measurements against JPSreport's reference results ---------------------------
+
+#include "engine/observe/analyze.hpp"
+
+namespace {
+
+// Columns of a JPSreport .dat file (comment lines start with '#').
+std::vector<std::vector<double>> read_dat(const std::string& path) {
+  std::ifstream in(path);
+  REQUIRE(in);
+  std::vector<std::vector<double>> rows;
+  std::string line;
+  while (std::getline(in, line)) {
+    if (line.empty() || line[0] == '#') continue;
+    std::istringstream ls(line);
+    std::vector<double> r;
+    double v;
+    while (ls >> v) r.push_back(v);
+    if (!r.empty()) rows.push_back(r);
+  }
+  return rows;
+}
+
+struct Deviation {
+  double mean_rel = 0, worst = 0;
+  long worst_frame = -1;
+  size_t frames = 0;
+};
+
+// Relative error of the means, and the worst per-frame error relative to max(|ref|, floor).
+Deviation compare(const std::vector<std::pair<double, double>>& ours_ref, double floor) {
+  Deviation d;
+  double so = 0, sr = 0;
+  long f = 0;
+  for (const auto& [o, r] : ours_ref) {
+    so += o, sr += r;
+    const double e = std::abs(o - r) / std::max(std::abs(r), floor);
+    if (e > d.worst) d.worst = e, d.worst_frame = f;
+    ++f;
+  }
+  d.frames = ours_ref.size();
+  d.mean_rel = std::abs(so - sr) / std::max(std::abs(sr), 1e-12);
+  return d;
+}
+
+}  // namespace
+
+TEST_CASE("analyze reproduces JPSreport's AO_300 bottleneck results", "[interop][data]") {
+  const std::string data = test::shared_data_dir();
+  if (data.empty()) {
+    WARN("SKIPPED: ../shared/data is absent (reference/jpsreport_bottleneck_AO_300)");
+    return;
+  }
+  const std::string dir = data + "/reference/jpsreport_bottleneck_AO_300";
+  const TrajectorySet t = TrajectorySet::read(dir + "/traj.txt");
+  REQUIRE(t.framerate == 16);
+  // tests/data/ao300_measurement.json holds geo.xml's walkable polygon, ini.xml's area 1 and
+  // lines 2 and 4, and its <velocity frame_step="10">, which JPSreport halves: 5 frames each side.
+  const std::string spec_path = test::repo_path("tests/data/ao300_measurement.json");
+  const AnalysisSpec spec = AnalysisSpec::from_json(load_json_file(spec_path), spec_path);
+  REQUIRE(spec.frame_step == 5);
+  REQUIRE(spec.lines.size() == 2);
+  const std::vector<double> speeds = individual_speeds(t, spec.frame_step);
+  const std::vector<AreaFrame> ours = measure_area(t, spec.areas.at(0).polygon, spec.walkable, speeds);
+  REQUIRE(ours.front().frame == 0);
+  auto at = [&](double frame) -> const AreaFrame& { return ours.at(static_cast<size_t>(frame)); };
+  const std::string res = dir + "/results/Fundamental_Diagram";
+  std::vector<std::pair<double, double>> cd, cv, vd, vv, nt;
+  for (const auto& r : read_dat(res + "/Classical_Voronoi/rho_v_Classic_traj.txt_id_1.dat")) {
+    cd.emplace_back(at(r[0]).classic_density, r[1]);
+    cv.emplace_back(at(r[0]).classic_speed, r[2]);
+  }
+  for (const auto& r : read_dat(res + "/Classical_Voronoi/rho_v_Voronoi_Voronoi_traj.txt_id_1.dat")) {
+    if (at(r[0]).people < 4) continue;  // JPSreport makes no Voronoi diagram of fewer than 4 people
+    vd.emplace_back(at(r[0]).voronoi_density, r[1]);
+    vv.emplace_back(at(r[0]).voronoi_speed, r[2]);
+  }
+  const auto counts = crossings(t, spec.lines[1].from, spec.lines[1].to);
+  long exact = 0, rows = 0;
+  for (const auto& r : read_dat(res + "/FlowVelocity/Flow_NT_traj_AO_300.txt_id_4.dat")) {
+    ++rows;
+    const auto& c = counts.at(static_cast<size_t>(r[0]));
+    CHECK(c.time == Approx(r[1]).margin(0.006));
+    exact += c.count == static_cast<long>(r[2]);
+    nt.emplace_back(static_cast<double>(c.count), r[2]);
+  }
+  CHECK(exact == rows);  // N(t) is a count: every frame exactly
+  CHECK(cd.size() == 959);
+  CHECK(vd.size() >= 900);
+  // Within 1% in the mean and 5% per frame (relative to the value, or to half the reference's
+  // rounding step plus 1% of its typical size for values near zero).
+  const std::pair<const char*, Deviation> checks[] = {
+      {"classic density", compare(cd, 0.1)}, {"classic speed", compare(cv, 0.1)},
+      {"Voronoi density", compare(vd, 0.1)}, {"Voronoi speed", compare(vv, 0.1)}, {"N(t)", compare(nt, 1)}};
+  for (const auto& [name, d] : checks) {
+    INFO(name << ": " << d.frames << " frames, mean " << 100 * d.mean_rel << "% off, worst frame " << d.worst_frame
+              << " " << 100 * d.worst << "% off");
+    CHECK(d.mean_rel < 0.01);
+    CHECK(d.worst < 0.05);
+    std::printf("%s: %zu frames, mean %.3f%% off, worst frame %.2f%% off\n", name, d.frames, 100 * d.mean_rel, 100 * d.worst);
+  }
+}
+
+TEST_CASE("Fruin's level of service has its published walkway boundaries", "[interop]") {
+  // ft^2 per person: A >= 35, B >= 25, C >= 15, D >= 10, E >= 5, F below (Fruin 1971).
+  constexpr double ft2 = 0.09290304;
+  CHECK(fruin_level(0) == 'A');
+  CHECK(fruin_level(0.2) == 'A');                 // 53.8 ft^2
+  CHECK(fruin_level(1 / (35 * ft2)) == 'A');      // exactly 35 ft^2
+  CHECK(fruin_level(1 / (34.9 * ft2)) == 'B');
+  CHECK(fruin_level(0.5) == 'C');                 // 21.5 ft^2
+  CHECK(fruin_level(1.0) == 'D');                 // 10.8 ft^2
+  CHECK(fruin_level(2.0) == 'E');                 // 5.4 ft^2
+  CHECK(fruin_level(1 / (5 * ft2)) == 'E');       // 2.153 persons/m^2
+  CHECK(fruin_level(2.2) == 'F');
+  CHECK(fruin_level(6.0) == 'F');
+  CHECK_THROWS_WITH(fruin_level(-1), Catch::Contains("density must be >= 0"));
+}
+
+TEST_CASE("Helbing's crowd pressure is density times the variance of the local velocity", "[interop]") {
+  // A square lattice at 4 persons/m^2 (0.5 m apart) whose people all walk at +u or -u along x
+  // in alternate frames: the local velocity swings between +u and -u, its variance over time is
+  // u^2 and the pressure density * u^2 = 4 * 0.64 = 2.56 1/s^2 inside the crowd.
+  TrajectorySet t;
+  t.framerate = 10;
+  const double u = 0.8;
+  std::vector<Vec2> vel;
+  for (long f = 0; f < 20; ++f)
+    for (int i = 0; i < 40; ++i)
+      for (int j = 0; j < 40; ++j) {
+        t.points.push_back({i * 40 + j + 1, f, 0.5 * i, 0.5 * j});
+        vel.emplace_back(f % 2 ? -u : u, 0);
+      }
+  const PressureField p = crowd_pressure(t, vel, 0, 19, Vec2(5, 5), Vec2(15, 15), 0.5, 0.7);
+  for (size_t k = 0; k < p.pressure.size(); ++k) {
+    CHECK(p.density[k] == Approx(4).epsilon(0.01));
+    CHECK(p.pressure[k] == Approx(4 * u * u).epsilon(0.01));
+  }
+  // The same crowd walking steadily has no pressure.
+  std::fill(vel.begin(), vel.end(), Vec2(u, 0));
+  CHECK(crowd_pressure(t, vel, 0, 19, Vec2(5, 5), Vec2(15, 15), 0.5, 0.7).max_pressure() < 1e-12);
 }
