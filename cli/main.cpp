@@ -4,6 +4,7 @@
 #include <cstdio>
 #include <cstring>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include <cmath>
@@ -96,7 +97,7 @@ const char* kDiagnoseHelp =
     "  --candidates A,B   candidate types to try (default: all)\n"
     "  --iterations N     optimiser iterations per fit (default 40)\n"
     "  --seed N           seed of the null simulations and minibatches\n"
-    "  --threads N        worker threads (default 1)\n"
+    "  --threads N        worker threads (default: the machine's cores)\n"
     "  --options JSON     any other option of a diagnosis request, e.g.\n"
     "                     '{\"null_replicates\": 8, \"min_gain\": 0.15, \"cell\": 0.5}'\n";
 
@@ -116,7 +117,8 @@ const char* kSimulateHelp =
     "options:\n"
     "  --out DIR          output folder (created if missing); required\n"
     "  --model MODEL      crowdmpm-model JSON to use instead of the scenario's model\n"
-    "  --threads N        worker threads (results are identical for any N); default 1\n"
+    "  --threads N        worker threads (results are identical for any N); default: the\n"
+    "                     machine's cores\n"
     "  --duration S       override time.duration (seconds; with --resume, the simulated time\n"
     "                     at which the continued run ends)\n"
     "  --quiet            no progress bar\n"
@@ -154,7 +156,7 @@ const char* kPredictHelp =
     "  --horizon S        seconds to predict (default 4)\n"
     "  --stride S         seconds between window starts (default: the horizon)\n"
     "  --windows N        at most N windows (default all)\n"
-    "  --threads N        worker threads (default 1)\n"
+    "  --threads N        worker threads (default: the machine's cores)\n"
     "  --out DIR          write prediction.json and prediction.png (first window's paths)\n";
 
 const char* kTrainHelp =
@@ -206,7 +208,7 @@ const char* kTrainHelp =
     "                     distribution if it has one), or each person's free speed (90th\n"
     "                     percentile of their walking speed along their track so far), times v0_scale\n"
     "  --threads N        windows simulated and differentiated in parallel, one per thread;\n"
-    "                     the model does not depend on N (default 1)\n"
+    "                     the model does not depend on N (default: the machine's cores)\n"
     "  --quiet            no progress lines\n"
     "\n"
     "From video: crowdmpm train --video V (--calibration CAL | --scale S) [--scenario S] --out M\n"
@@ -267,7 +269,7 @@ const char* kRenderHelp =
     "  --tilt DEG         camera tilt from straight down (default 35)\n"
     "  --size WxH         image size (default 640x480)\n"
     "  --model MODEL      crowdmpm-model JSON instead of the scenario's\n"
-    "  --threads N        worker threads (default 1)\n";
+    "  --threads N        worker threads (default: the machine's cores)\n";
 
 const char* kAnalyzeHelp =
     "usage: crowdmpm analyze TRAJECTORIES --out DIR (--spec MEASUREMENTS.json | --scenario S)\n"
@@ -296,6 +298,12 @@ const char* kValidateHelp =
     "Parses and checks SCENARIO and the model, places the groups, and prints a summary.\n"
     "Exit status 0 if valid, 1 with a message naming the JSON path otherwise.\n";
 
+// --threads default: the machine's cores (results do not depend on the thread count).
+int default_threads() {
+  const unsigned n = std::thread::hardware_concurrency();
+  return n == 0 ? 1 : static_cast<int>(std::min(n, 256u));
+}
+
 struct Args {
   std::vector<std::string> positional;
   std::string out, model, scenario, trajectories;  // the first --model, --scenario, --trajectories
@@ -303,7 +311,7 @@ struct Args {
   std::vector<std::pair<std::string, std::vector<std::string>>> datasets;  // scenario, its trajectories
   double observe = 2, horizon = 4, stride = -1;
   int windows = 0;
-  int threads = 1;
+  int threads = default_threads();
   double duration = -1;
   bool quiet = false, help = false;
   std::string desired_speed = "observed";

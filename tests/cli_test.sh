@@ -174,6 +174,15 @@ check "diagnose option out of range" 1 "$cli" diagnose --scenario "$src/scenario
   --out "$work/diag2" --options '{"cell": -1}'
 contains "diagnose option out of range" "options.cell"
 
+# --threads defaults to the machine's cores; the output does not depend on it.
+check "simulate default threads" 0 "$cli" simulate "$src/scenarios/drill.json" --out "$work/thr_default" --duration 3 --quiet
+check "simulate 1 thread" 0 "$cli" simulate "$src/scenarios/drill.json" --out "$work/thr_one" --duration 3 --quiet --threads 1
+cmp -s "$work/thr_default/trajectories.txt" "$work/thr_one/trajectories.txt" ||
+  { echo "FAIL simulate: trajectories differ between the default thread count and --threads 1"; failures=$((failures + 1)); }
+for f in peak.png final.png; do
+  [ -s "$work/thr_default/$f" ] || { echo "FAIL simulate: $f missing"; failures=$((failures + 1)); }
+done
+
 # analyze: the simulated run's JuPedSim SQLite file with the scenario's measurement areas, the
 # reference AO_300 recording with its spec (when ../shared/data is there), and bad input.
 [ -s "$work/sim/trajectories.sqlite" ] || { echo "FAIL simulate: trajectories.sqlite missing"; failures=$((failures + 1)); }

@@ -15,9 +15,11 @@ namespace {
 constexpr int kTitle = 28;  // band above the map
 constexpr int kBar = 90;    // colour bar to the right
 constexpr int kPad = 8;
+constexpr int kLeft = 44;    // left of the map: y axis labels (m)
+constexpr int kBottom = 40;  // below the map: x axis labels (m) and the scale bar
 
 cv::Point to_px(const View& v, const Vec2& p) {
-  return cv::Point(kPad + static_cast<int>(std::lround((p.x() - v.lo.x()) * v.ppm)),
+  return cv::Point(kLeft + static_cast<int>(std::lround((p.x() - v.lo.x()) * v.ppm)),
                    kTitle + static_cast<int>(std::lround((v.hi.y() - p.y()) * v.ppm)));
 }
 
@@ -34,7 +36,7 @@ cv::Vec3b colour(double t) {
 
 cv::Mat canvas(const View& v) {
   // At least 480 px wide so that titles and legends of tall, narrow venues fit.
-  return cv::Mat(v.height() + kTitle + kPad, std::max(480, v.width() + 2 * kPad + kBar), CV_8UC3, cv::Scalar(255, 255, 255));
+  return cv::Mat(v.height() + kTitle + kBottom, std::max(480, kLeft + v.width() + kPad + kBar), CV_8UC3, cv::Scalar(255, 255, 255));
 }
 
 void draw_shape(cv::Mat& img, const View& v, const Shape& s, const cv::Scalar& fill, const cv::Scalar& edge, bool filled) {
@@ -62,7 +64,56 @@ void draw_shape(cv::Mat& img, const View& v, const Shape& s, const cv::Scalar& f
   }
 }
 
+// A round length in metres (1, 2 or 5 times a power of ten) at least min_px pixels long.
+double nice_step(const View& v, double min_px) {
+  const double want = min_px / v.ppm;
+  double base = std::pow(10.0, std::floor(std::log10(want)));
+  for (double m : {1.0, 2.0, 5.0, 10.0})
+    if (m * base >= want) return m * base;
+  return 10 * base;
+}
+
+std::string metres(double x) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%g", std::abs(x) < 1e-9 ? 0.0 : x);
+  return buf;
+}
+
+// Axes in metres along the bottom and left of the map, and a scale bar below it on the right.
+void draw_axes(cv::Mat& img, const View& v) {
+  const cv::Scalar ink(0, 0, 0);
+  const double step = nice_step(v, 60);
+  const int bottom = kTitle + v.height(), left = kLeft;
+  for (double x = std::ceil(v.lo.x() / step - 1e-9) * step; x <= v.hi.x() + 1e-9; x += step) {
+    const int px = to_px(v, Vec2(x, v.lo.y())).x;
+    cv::line(img, cv::Point(px, bottom), cv::Point(px, bottom + 4), ink);
+    const std::string t = metres(x);
+    int base = 0;
+    const cv::Size sz = cv::getTextSize(t, cv::FONT_HERSHEY_SIMPLEX, 0.35, 1, &base);
+    cv::putText(img, t, cv::Point(px - sz.width / 2, bottom + 15), cv::FONT_HERSHEY_SIMPLEX, 0.35, ink, 1, cv::LINE_AA);
+  }
+  for (double y = std::ceil(v.lo.y() / step - 1e-9) * step; y <= v.hi.y() + 1e-9; y += step) {
+    const int py = to_px(v, Vec2(v.lo.x(), y)).y;
+    cv::line(img, cv::Point(left - 4, py), cv::Point(left, py), ink);
+    const std::string t = metres(y);
+    int base = 0;
+    const cv::Size sz = cv::getTextSize(t, cv::FONT_HERSHEY_SIMPLEX, 0.35, 1, &base);
+    cv::putText(img, t, cv::Point(left - 6 - sz.width, py + 4), cv::FONT_HERSHEY_SIMPLEX, 0.35, ink, 1, cv::LINE_AA);
+  }
+  cv::putText(img, "x, y in m", cv::Point(left + v.width() + 12, bottom + 15), cv::FONT_HERSHEY_SIMPLEX, 0.35, ink, 1, cv::LINE_AA);
+  // Scale bar: one step long, under the right end of the map.
+  const int bar = static_cast<int>(std::lround(step * v.ppm)), x1 = left + v.width(), x0 = x1 - bar, y = bottom + 30;
+  cv::line(img, cv::Point(x0, y), cv::Point(x1, y), ink, 2);
+  cv::line(img, cv::Point(x0, y - 4), cv::Point(x0, y + 4), ink);
+  cv::line(img, cv::Point(x1, y - 4), cv::Point(x1, y + 4), ink);
+  const std::string t = metres(step) + " m";
+  int base = 0;
+  const cv::Size sz = cv::getTextSize(t, cv::FONT_HERSHEY_SIMPLEX, 0.4, 1, &base);
+  cv::putText(img, t, cv::Point(x0 - sz.width - 6, y + 4), cv::FONT_HERSHEY_SIMPLEX, 0.4, ink, 1, cv::LINE_AA);
+}
+
 void draw_geometry(cv::Mat& img, const View& v, const Geometry& geo) {
+  draw_axes(img, v);
   for (const auto& e : geo.exits) draw_shape(img, v, e.shape, cv::Scalar(120, 200, 120), cv::Scalar(40, 140, 40), false);
   for (const auto& g : geo.goals) draw_shape(img, v, g.shape, cv::Scalar(200, 160, 80), cv::Scalar(200, 120, 40), false);
   for (const auto& s : geo.solids) draw_shape(img, v, s, cv::Scalar(90, 90, 90), cv::Scalar(40, 40, 40), true);
@@ -70,7 +121,7 @@ void draw_geometry(cv::Mat& img, const View& v, const Geometry& geo) {
 }
 
 void draw_colour_bar(cv::Mat& img, const View& v, double vmin, double vmax, const std::string& unit) {
-  int x0 = v.width() + 2 * kPad + 10, y0 = kTitle, h = v.height(), w = 16;
+  int x0 = kLeft + v.width() + kPad + 10, y0 = kTitle, h = v.height(), w = 16;
   for (int y = 0; y < h; ++y) {
     cv::Vec3b c = colour(1.0 - static_cast<double>(y) / std::max(1, h - 1));
     cv::line(img, cv::Point(x0, y0 + y), cv::Point(x0 + w, y0 + y), cv::Scalar(c[0], c[1], c[2]));
@@ -131,7 +182,7 @@ void write_field_png(const std::string& path, const Geometry& geo, const View& v
       double val = (1 - tx) * (1 - ty) * f.at(values, i, j) + tx * (1 - ty) * f.at(values, i + 1, j) +
                    (1 - tx) * ty * f.at(values, i, j + 1) + tx * ty * f.at(values, i + 1, j + 1);
       if (geo.sdf(p) < 0) continue;
-      img.at<cv::Vec3b>(kTitle + py, kPad + px) = colour((val - vmin) / (vmax - vmin));
+      img.at<cv::Vec3b>(kTitle + py, kLeft + px) = colour((val - vmin) / (vmax - vmin));
     }
   draw_geometry(img, v, geo);
   draw_colour_bar(img, v, vmin, vmax, unit);
@@ -194,7 +245,7 @@ void write_paths_png(const std::string& path, const Geometry& geo, const View& v
     int base = 0;
     label_w = std::max(label_w, cv::getTextSize(set.label, cv::FONT_HERSHEY_SIMPLEX, 0.35, 1, &base).width);
   }
-  cv::Mat img(v.height() + kTitle + kPad, std::max(480, v.width() + 2 * kPad + 4 + 18 + label_w + 6), CV_8UC3,
+  cv::Mat img(v.height() + kTitle + kBottom, std::max(480, kLeft + v.width() + kPad + 4 + 18 + label_w + 6), CV_8UC3,
               cv::Scalar(255, 255, 255));
   draw_geometry(img, v, geo);
   int legend_y = kTitle + 16;
@@ -207,7 +258,7 @@ void write_paths_png(const std::string& path, const Geometry& geo, const View& v
       if (pts.size() >= 2) cv::polylines(img, pts, false, c, 1, cv::LINE_AA);
       if (!pts.empty()) cv::circle(img, pts.back(), 2, c, cv::FILLED, cv::LINE_AA);
     }
-    int x0 = v.width() + 2 * kPad + 4;
+    int x0 = kLeft + v.width() + kPad + 4;
     cv::line(img, cv::Point(x0, legend_y), cv::Point(x0 + 14, legend_y), c, 2);
     cv::putText(img, set.label, cv::Point(x0 + 18, legend_y + 4), cv::FONT_HERSHEY_SIMPLEX, 0.35, cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
     legend_y += 16;

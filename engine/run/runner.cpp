@@ -108,9 +108,17 @@ RunSummary run_simulation(Simulation& sim, const RunOptions& opt) {
   }
   std::vector<float> buf;
   long last_frame = -1;
+  // The crowd at the frame of peak density, for peak.png (a copy only when the peak rises).
+  std::unique_ptr<World> peak_world;
+  double peak_time = 0;
   auto emit = [&]() {
     FieldFrame f = compute_fields(sim.world(), sim.grid());
+    const double peak_before = metrics.peak_density().value;
     metrics.record(sim, f);
+    if (video && s.outputs.pictures && metrics.peak_density().value > peak_before) {
+      peak_world = std::make_unique<World>(sim.world());
+      peak_time = sim.time();
+    }
     // A run that ends between two frames (all evacuated, or a duration that is not a whole
     // number of frames) gets its final state in the metrics only: a frame number must stand
     // for one time, and files must not repeat one.
@@ -180,6 +188,7 @@ RunSummary run_simulation(Simulation& sim, const RunOptions& opt) {
       write_field_png(file("density_mean.png"), s.geo, view, mean, mean.density, 0, s.outputs.density_max,
                       s.name + ": time-averaged density", "pers/m2");
       if (video) video->write_snapshot(file("final.png"), sim.world(), sim.time());
+      if (video && peak_world) video->write_snapshot(file("peak.png"), *peak_world, peak_time);
     }
     if (s.outputs.metrics) {
       std::ofstream m(file("metrics.json"));
