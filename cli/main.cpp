@@ -20,6 +20,7 @@
 #include "engine/vision/video_job.hpp"
 #include "engine/vision/video_learn.hpp"
 #include "engine/observe/analyze.hpp"
+#include "engine/report/report.hpp"
 
 using namespace crowdmpm;
 
@@ -62,6 +63,10 @@ const char* kUsage =
     "                      PedPy-style measurements of any trajectory file (text or JuPedSim\n"
     "                      SQLite): classic and Voronoi density and speed, N(t) over lines,\n"
     "                      fundamental diagram, level of service, crowd pressure\n"
+    "  report DIR [--out FILE] [--scenario S]\n"
+    "                      one self-contained HTML page of a simulate output folder: maps,\n"
+    "                      N(t), evacuation time, areas over time, level of service, crowd\n"
+    "                      pressure, the video\n"
     "  help [COMMAND]      show help\n"
     "\n"
     "Run 'crowdmpm <command> --help' for the options of one command.\n"
@@ -291,6 +296,22 @@ const char* kAnalyzeHelp =
     "  --scenario S       a scenario whose measurement areas and domain are used\n"
     "  --frame-step N     frames on each side for individual speeds (default 5, or the spec's)\n"
     "  --framerate F      frames per second, replacing the file's\n";
+
+const char* kReportHelp =
+    "usage: crowdmpm report DIR [--out FILE] [--scenario S]\n"
+    "\n"
+    "Writes DIR/report.html (or FILE): one HTML page with everything inlined (no network, no\n"
+    "other files), for the folder `crowdmpm simulate SCENARIO --out DIR` wrote: the run's key\n"
+    "numbers, N(t) per exit and the people in the venue over time, density and pressure over\n"
+    "time in each measurement area, the density, pressure and Fruin level-of-service maps, a\n"
+    "crowd-pressure (Helbing) danger map computed from the trajectories (also written as\n"
+    "DIR/crowd_pressure.png), the crowd at peak density and at the end, and the video\n"
+    "(re-encoded as WebM). docs/report.md.\n"
+    "\n"
+    "options:\n"
+    "  --out FILE         the page (default DIR/report.html)\n"
+    "  --scenario S       the venue for the crowd-pressure map (default: the scenario the run\n"
+    "                     names in metrics.json)\n";
 
 const char* kValidateHelp =
     "usage: crowdmpm validate SCENARIO [--model MODEL]\n"
@@ -912,6 +933,16 @@ int cmd_analyze(const Args& a) {
   return 0;
 }
 
+int cmd_report(const Args& a) {
+  if (a.help) { std::fputs(kReportHelp, stdout); return 0; }
+  if (a.positional.size() != 1) usage_error("report needs exactly one DIR (an output folder of crowdmpm simulate)");
+  ReportOptions opt;
+  opt.out = a.out;
+  opt.scenario = a.scenario;
+  std::printf("wrote %s\n", write_report(a.positional[0], opt).c_str());
+  return 0;
+}
+
 int cmd_validate(const Args& a) {
   if (a.help) { std::fputs(kValidateHelp, stdout); return 0; }
   if (a.positional.size() != 1) usage_error("validate needs exactly one SCENARIO file");
@@ -944,6 +975,7 @@ int main(int argc, char** argv) {
                  : sub == "render-video" ? kRenderHelp
                  : sub == "diagnose" ? kDiagnoseHelp
                  : sub == "analyze"  ? kAnalyzeHelp
+                 : sub == "report"   ? kReportHelp
                                      : kUsage,
                  stdout);
       return 0;
@@ -957,6 +989,7 @@ int main(int argc, char** argv) {
     if (cmd == "render-video") return cmd_render_video(a);
     if (cmd == "diagnose") return cmd_diagnose(a);
     if (cmd == "analyze") return cmd_analyze(a);
+    if (cmd == "report") return cmd_report(a);
     usage_error("unknown command '" + cmd + "'");
   } catch (const Error& e) {
     std::fprintf(stderr, "%scrowdmpm: error: %s\n", g_progress_line ? "\n" : "", e.what());

@@ -32,7 +32,7 @@ contains() {  # contains NAME TEXT : $out must contain TEXT
 
 check "help" 0 "$cli" help
 contains "help lists train" "train --scenario"
-for c in simulate validate predict train diagnose analyze; do
+for c in simulate validate predict train diagnose analyze report; do
   check "help $c" 0 "$cli" "$c" --help
   contains "help $c" "usage: crowdmpm $c"
 done
@@ -182,6 +182,13 @@ cmp -s "$work/thr_default/trajectories.txt" "$work/thr_one/trajectories.txt" ||
 for f in peak.png final.png; do
   [ -s "$work/thr_default/$f" ] || { echo "FAIL simulate: $f missing"; failures=$((failures + 1)); }
 done
+
+# report: errors (the page itself is tested in a browser: tests/report/).
+check "report no folder" 1 "$cli" report "$work/nowhere"
+contains "report no folder" "not a folder"
+mkdir -p "$work/empty_run"
+check "report no metrics" 1 "$cli" report "$work/empty_run"
+contains "report no metrics" "no metrics.json (run crowdmpm simulate"
 
 # analyze: the simulated run's JuPedSim SQLite file with the scenario's measurement areas, the
 # reference AO_300 recording with its spec (when ../shared/data is there), and bad input.

@@ -1,6 +1,7 @@
 #include "engine/analysis/metrics.hpp"
 
 #include <algorithm>
+#include <filesystem>
 #include <cmath>
 
 namespace crowdmpm {
@@ -62,6 +63,7 @@ void MetricsRecorder::record(const Simulation& sim, const FieldFrame& f) {
       }
     ++st.frames;
     st.density_sum += static_cast<double>(inside) / st.area;
+    st.series.push_back({t, static_cast<double>(inside) / st.area, inside ? psum / static_cast<double>(inside) : 0.0});
     if (inside) {
       st.pressure_sum += psum / static_cast<double>(inside);
       ++st.pressure_frames;
@@ -95,6 +97,7 @@ static json peak_json(const Peak& p) {
 json MetricsRecorder::to_json(const Simulation& sim) const {
   json j;
   j["scenario"] = s_.name;
+  if (!s_.source.empty() && std::filesystem::exists(s_.source)) j["scenario_file"] = std::filesystem::absolute(s_.source).string();
   j["simulated_time"] = sim.time();
   j["steps"] = sim.steps();
   j["agents_spawned"] = sim.spawned();
@@ -132,12 +135,26 @@ json MetricsRecorder::to_json(const Simulation& sim) const {
                      {"mean_density", st.mean_density()},
                      {"mean_pressure", st.mean_pressure()},
                      {"mean_grid_pressure", st.mean_grid_pressure()},
-                     {"peak_pressure", st.pressure_peak}});
+                     {"peak_pressure", st.pressure_peak},
+                     {"series", st.series}});
   }
   j["measurement_areas"] = areas;
   j["units"] = {{"time", "s"}, {"length", "m"}, {"density", "persons/m^2"}, {"flow_rate", "persons/s"},
                 {"pressure", "model stress units (N/m per person of mass 1)"}};
   return j;
+}
+
+char fruin_level(double density) {
+  if (!(density >= 0)) throw Error("level of service: density must be >= 0, got " + format_number(density));
+  constexpr double kFt2 = 0.09290304;  // m^2 per square foot
+  if (density == 0) return 'A';
+  const double ft2_per_person = 1 / density / kFt2;
+  if (ft2_per_person >= 35) return 'A';
+  if (ft2_per_person >= 25) return 'B';
+  if (ft2_per_person >= 15) return 'C';
+  if (ft2_per_person >= 10) return 'D';
+  if (ft2_per_person >= 5) return 'E';
+  return 'F';
 }
 
 }  // namespace crowdmpm

@@ -2,6 +2,7 @@
 // Venue metrics gathered at every output frame: agents remaining, exit flow N(t), evacuation
 // time, peak density and pressure with where and when, measurement-area averages, and the
 // time-averaged and peak maps used for pictures.
+#include <array>
 #include <string>
 #include <vector>
 
@@ -18,6 +19,7 @@ struct AreaStats {
   long pressure_frames = 0;
   double pressure_peak = 0;  // largest agent pressure inside at any frame
   double grid_pressure_sum = 0;  // mean node pressure inside, summed over frames
+  std::vector<std::array<double, 3>> series;  // per frame in the window: time (s), density, mean agent pressure (0 if empty)
   double mean_density() const { return frames ? density_sum / static_cast<double>(frames) : 0; }
   double mean_pressure() const { return pressure_frames ? pressure_sum / static_cast<double>(pressure_frames) : 0; }
   double mean_grid_pressure() const { return frames ? grid_pressure_sum / static_cast<double>(frames) : 0; }
@@ -27,6 +29,11 @@ struct Peak {
   double value = 0, time = 0;
   Vec2 where = Vec2::Zero();
 };
+
+// Fruin's walkway level of service from the density (persons/m^2): the area per person against
+// 35, 25, 15, 10 and 5 ft^2 (3.25, 2.32, 1.39, 0.93, 0.46 m^2): 'A' (at least 35 ft^2) ... 'F'
+// (less than 5 ft^2; above 2.15 persons/m^2).
+char fruin_level(double density);
 
 class MetricsRecorder {
  public:

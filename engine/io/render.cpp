@@ -288,6 +288,66 @@ struct ParticleVideo::Impl {
   }
 };
 
+void write_category_png(const std::string& path, const Geometry& geo, const View& v, const FieldFrame& f,
+                        const std::vector<int>& category, const std::vector<Category>& legend, const std::string& text) {
+  if (category.size() != static_cast<size_t>(f.nx) * static_cast<size_t>(f.ny))
+    throw Error(path + ": internal error: category map size mismatch");
+  cv::Mat img = canvas(v);
+  for (int py = 0; py < v.height(); ++py)
+    for (int px = 0; px < v.width(); ++px) {
+      Vec2 p(v.lo.x() + (px + 0.5) / v.ppm, v.hi.y() - (py + 0.5) / v.ppm);
+      const int i = std::clamp(static_cast<int>(std::lround((p.x() - f.origin.x()) / f.dx)), 0, f.nx - 1);
+      const int j = std::clamp(static_cast<int>(std::lround((p.y() - f.origin.y()) / f.dx)), 0, f.ny - 1);
+      const int c = category[static_cast<size_t>(j) * static_cast<size_t>(f.nx) + static_cast<size_t>(i)];
+      if (c < 0 || c >= static_cast<int>(legend.size()) || geo.sdf(p) < 0) continue;
+      const Category& k = legend[static_cast<size_t>(c)];
+      img.at<cv::Vec3b>(kTitle + py, kLeft + px) = cv::Vec3b(static_cast<unsigned char>(k.b), static_cast<unsigned char>(k.g),
+                                                             static_cast<unsigned char>(k.r));
+    }
+  draw_geometry(img, v, geo);
+  const int x0 = kLeft + v.width() + kPad + 10;
+  for (size_t c = 0; c < legend.size(); ++c) {
+    const int y = kTitle + 4 + static_cast<int>(c) * 22;
+    cv::rectangle(img, cv::Point(x0, y), cv::Point(x0 + 16, y + 16), cv::Scalar(legend[c].b, legend[c].g, legend[c].r), cv::FILLED);
+    cv::rectangle(img, cv::Point(x0, y), cv::Point(x0 + 16, y + 16), cv::Scalar(0, 0, 0));
+    cv::putText(img, legend[c].label, cv::Point(x0 + 22, y + 13), cv::FONT_HERSHEY_SIMPLEX, 0.4, cv::Scalar(0, 0, 0), 1,
+                cv::LINE_AA);
+  }
+  title(img, text);
+  write_png(path, img);
+}
+
+std::pair<long, double> video_frame_count(const std::string& path) {
+  cv::VideoCapture in(path);
+  if (!in.isOpened()) throw Error(path + ": cannot open video");
+  return {static_cast<long>(in.get(cv::CAP_PROP_FRAME_COUNT)), in.get(cv::CAP_PROP_FPS)};
+}
+
+long transcode_to_webm(const std::string& in_path, const std::string& out_path, int stride, double scale) {
+  if (stride < 1 || !(scale > 0 && scale <= 1)) throw Error(out_path + ": stride must be >= 1 and scale in (0, 1]");
+  cv::VideoCapture in(in_path);
+  if (!in.isOpened()) throw Error(in_path + ": cannot open video");
+  double fps = in.get(cv::CAP_PROP_FPS);
+  if (!(fps > 0)) fps = 10;
+  cv::VideoWriter out;
+  cv::Mat frame, small;
+  long read = 0, written = 0;
+  while (in.read(frame)) {
+    if (read++ % stride) continue;
+    cv::resize(frame, small, cv::Size(), scale, scale, cv::INTER_AREA);
+    // Even sizes for the codec.
+    small = small(cv::Rect(0, 0, small.cols - small.cols % 2, small.rows - small.rows % 2)).clone();
+    if (!out.isOpened()) {
+      out.open(out_path, cv::VideoWriter::fourcc('V', 'P', '8', '0'), fps / stride, small.size());
+      if (!out.isOpened()) throw Error(out_path + ": cannot open a VP8/WebM video for writing (OpenCV with FFmpeg and libvpx)");
+    }
+    out.write(small);
+    ++written;
+  }
+  if (written == 0) throw Error(in_path + ": no frames could be read");
+  return written;
+}
+
 ParticleVideo::ParticleVideo(const std::string& path, const Geometry& geo, const View& view, double fps, double pmax)
     : impl_(new Impl(geo, view, pmax > 0 ? pmax : 1)) {
   impl_->background = canvas(view);

@@ -43,6 +43,21 @@ struct PathSet {
 void write_paths_png(const std::string& path, const Geometry& geo, const View& view, const std::vector<PathSet>& sets,
                      const std::string& title);
 
+// A categorical map: each node's category (index into `legend`, -1 = none) as flat colour
+// (nearest node), the legend as labelled swatches. Colours are {r, g, b}.
+struct Category {
+  std::string label;
+  int r, g, b;
+};
+void write_category_png(const std::string& path, const Geometry& geo, const View& view, const FieldFrame& f,
+                        const std::vector<int>& category, const std::vector<Category>& legend, const std::string& title);
+
+// Re-encodes a video for web pages: VP8 in WebM (what browsers play), every `stride`-th frame,
+// scaled by `scale`. Returns the frames written; throws Error naming the file on failure.
+long transcode_to_webm(const std::string& in_path, const std::string& out_path, int stride, double scale);
+// Frames and frame rate of a video file (OpenCV's reading), for choosing a stride.
+std::pair<long, double> video_frame_count(const std::string& path);
+
 class ParticleVideo {
  public:
   ParticleVideo(const std::string& path, const Geometry& geo, const View& view, double fps, double pressure_max);

@@ -308,19 +308,6 @@ std::vector<LineCount> crossings(const TrajectorySet& t, const Vec2& a, const Ve
   return out;
 }
 
-char fruin_level(double density) {
-  if (!(density >= 0)) throw Error("level of service: density must be >= 0, got " + format_number(density));
-  constexpr double kFt2 = 0.09290304;  // m^2 per square foot
-  if (density == 0) return 'A';
-  const double ft2_per_person = 1 / density / kFt2;
-  if (ft2_per_person >= 35) return 'A';
-  if (ft2_per_person >= 25) return 'B';
-  if (ft2_per_person >= 15) return 'C';
-  if (ft2_per_person >= 10) return 'D';
-  if (ft2_per_person >= 5) return 'E';
-  return 'F';
-}
-
 double PressureField::max_pressure() const {
   return pressure.empty() ? 0 : *std::max_element(pressure.begin(), pressure.end());
 }

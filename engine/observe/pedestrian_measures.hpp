@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "engine/analysis/metrics.hpp"  // fruin_level
 #include "engine/io/trajectory.hpp"
 
 namespace crowdmpm {
@@ -52,10 +53,6 @@ struct LineCount {
 };
 std::vector<LineCount> crossings(const TrajectorySet& t, const Vec2& a, const Vec2& b);
 
-// Fruin's walkway level of service from the density (persons/m^2): the area per person against
-// 35, 25, 15, 10 and 5 ft^2 (3.25, 2.32, 1.39, 0.93, 0.46 m^2): 'A' (at least 35 ft^2) ... 'F'
-// (less than 5 ft^2).
-char fruin_level(double density);
 
 // Helbing, Johansson and Al-Abideen (2007) crowd pressure on a grid: with Gaussian weights
 // f(d) = exp(-|d|^2 / R^2) / (pi R^2), the local density rho(r, t) = sum_j f(r_j - r) and the

@@ -58,6 +58,12 @@ void NpyWriter::close() {
   if (bad) throw Error(path_ + ": write failed (disk full?)");
 }
 
+namespace {
+// Area per person (m^2) of each level: A from 3.25 up, ..., F below 0.46.
+const std::vector<Category> kFruinLegend = {{"A >3.25", 26, 150, 65},  {"B >2.32", 145, 207, 96}, {"C >1.39", 255, 224, 80},
+                                            {"D >0.93", 253, 150, 50}, {"E >0.46", 220, 50, 40},  {"F <0.46", 120, 0, 90}};
+}  // namespace
+
 RunSummary run_scenario(const ScenarioDef& s, const Model& model, const RunOptions& opt) {
   auto t0 = std::chrono::steady_clock::now();
   Simulation sim(s, model, opt.threads);
@@ -187,6 +193,12 @@ RunSummary run_simulation(Simulation& sim, const RunOptions& opt) {
                       s.name + ": peak pressure over time", "pressure");
       write_field_png(file("density_mean.png"), s.geo, view, mean, mean.density, 0, s.outputs.density_max,
                       s.name + ": time-averaged density", "pers/m2");
+      // Fruin's level of service of each node's peak density (where anyone was).
+      std::vector<int> level(peak.density.size(), -1);
+      for (size_t k = 0; k < level.size(); ++k)
+        if (peak.density[k] >= 0.1) level[k] = fruin_level(peak.density[k]) - 'A';
+      write_category_png(file("level_of_service.png"), s.geo, view, peak, level, kFruinLegend,
+                         s.name + ": Fruin level of service at peak density (m2/person)");
       if (video) video->write_snapshot(file("final.png"), sim.world(), sim.time());
       if (video && peak_world) video->write_snapshot(file("peak.png"), *peak_world, peak_time);
     }
