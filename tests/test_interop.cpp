@@ -225,31 +225,52 @@ TEST_CASE("analyze reproduces JPSreport's AO_300 bottleneck results", "[interop]
   const AnalysisSpec spec = AnalysisSpec::from_json(load_json_file(spec_path), spec_path);
   REQUIRE(spec.frame_step == 5);
   REQUIRE(spec.lines.size() == 2);
-  const std::vector<double> speeds = individual_speeds(t, spec.frame_step);
-  const std::vector<AreaFrame> ours = measure_area(t, spec.areas.at(0).polygon, spec.walkable, speeds);
-  REQUIRE(ours.front().frame == 0);
-  auto at = [&](double frame) -> const AreaFrame& { return ours.at(static_cast<size_t>(frame)); };
+  // What `crowdmpm analyze --spec` writes: area_bottleneck.csv and nt_line4.csv.
+  const std::string out = temp_file("crowdmpm_interop_ao300");
+  std::filesystem::remove_all(out);
+  const json summary = run_analysis(t, spec, out);
+  CHECK(summary["lines"][1]["crossings"] == 348);
+  // frame -> columns of a CSV file with a header line (the last column may be a letter).
+  auto read_csv = [](const std::string& path) {
+    std::ifstream in(path);
+    REQUIRE(in);
+    std::map<long, std::vector<double>> rows;
+    std::string line;
+    std::getline(in, line);
+    while (std::getline(in, line)) {
+      std::vector<double> r;
+      std::stringstream ls(line);
+      std::string cell;
+      while (std::getline(ls, cell, ',')) r.push_back(std::isalpha(static_cast<unsigned char>(cell[0])) ? cell[0] - 'A' : std::stod(cell));
+      rows[static_cast<long>(r.at(0))] = r;
+    }
+    return rows;
+  };
+  const auto area = read_csv(out + "/area_bottleneck.csv");  // frame,time,people,inside,cd,cs,vd,vs,los
+  const auto line4 = read_csv(out + "/nt_line4.csv");        // frame,time,count
+  REQUIRE(area.size() == 959);
+  auto at = [&](double frame) -> const std::vector<double>& { return area.at(static_cast<long>(frame)); };
   const std::string res = dir + "/results/Fundamental_Diagram";
   std::vector<std::pair<double, double>> cd, cv, vd, vv, nt;
   for (const auto& r : read_dat(res + "/Classical_Voronoi/rho_v_Classic_traj.txt_id_1.dat")) {
-    cd.emplace_back(at(r[0]).classic_density, r[1]);
-    cv.emplace_back(at(r[0]).classic_speed, r[2]);
+    cd.emplace_back(at(r[0])[4], r[1]);
+    cv.emplace_back(at(r[0])[5], r[2]);
   }
   for (const auto& r : read_dat(res + "/Classical_Voronoi/rho_v_Voronoi_Voronoi_traj.txt_id_1.dat")) {
-    if (at(r[0]).people < 4) continue;  // JPSreport makes no Voronoi diagram of fewer than 4 people
-    vd.emplace_back(at(r[0]).voronoi_density, r[1]);
-    vv.emplace_back(at(r[0]).voronoi_speed, r[2]);
+    if (at(r[0])[2] < 4) continue;  // JPSreport makes no Voronoi diagram of fewer than 4 people
+    vd.emplace_back(at(r[0])[6], r[1]);
+    vv.emplace_back(at(r[0])[7], r[2]);
   }
-  const auto counts = crossings(t, spec.lines[1].from, spec.lines[1].to);
   long exact = 0, rows = 0;
   for (const auto& r : read_dat(res + "/FlowVelocity/Flow_NT_traj_AO_300.txt_id_4.dat")) {
     ++rows;
-    const auto& c = counts.at(static_cast<size_t>(r[0]));
-    CHECK(c.time == Approx(r[1]).margin(0.006));
-    exact += c.count == static_cast<long>(r[2]);
-    nt.emplace_back(static_cast<double>(c.count), r[2]);
+    const auto& c = line4.at(static_cast<long>(r[0]));
+    CHECK(c[1] == Approx(r[1]).margin(0.006));
+    exact += static_cast<long>(c[2]) == static_cast<long>(r[2]);
+    nt.emplace_back(c[2], r[2]);
   }
   CHECK(exact == rows);  // N(t) is a count: every frame exactly
+  std::filesystem::remove_all(out);
   CHECK(cd.size() == 959);
   CHECK(vd.size() >= 900);
   // Within 1% in the mean and 5% per frame (relative to the value, or to half the reference's

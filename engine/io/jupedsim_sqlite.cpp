@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <map>
 #include <numeric>
@@ -77,6 +78,8 @@ std::string rectangle_wkt(double xmin, double ymin, double xmax, double ymax) {
 }
 
 bool is_sqlite_file(const std::string& path) {
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec)) return false;  // never open a pipe or a device
   std::ifstream in(path, std::ios::binary);
   char head[16] = {};
   if (!in.read(head, sizeof head)) return false;

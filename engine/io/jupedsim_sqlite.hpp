@@ -23,7 +23,7 @@ namespace crowdmpm {
 // "POLYGON ((x y, ...))" of an axis-aligned rectangle, counter-clockwise, closed.
 std::string rectangle_wkt(double xmin, double ymin, double xmax, double ymax);
 
-// Whether the file starts with SQLite's magic header ("SQLite format 3\0").
+// Whether the path is a regular file starting with SQLite's magic header ("SQLite format 3\0").
 bool is_sqlite_file(const std::string& path);
 
 class JupedsimSqliteWriter {

@@ -36,6 +36,7 @@ double unit_scale(const std::string& u) {
 }  // namespace
 
 TrajectorySet TrajectorySet::read(const std::string& path, double framerate_override, const InputPolicy& policy) {
+  check_input_file(path, policy);  // a regular file below the limit before anything opens it (a pipe would block)
   if (is_sqlite_file(path)) return read_jupedsim_sqlite(path, framerate_override, policy);
   return parse(read_input_file(path, policy), path, framerate_override);
 }
