@@ -17,6 +17,16 @@ function(run what)
   set(RUN_OUT "${out}" PARENT_SCOPE)
 endfunction()
 
+# Runs a consumer program on the installed drill; it must print the committed hash.
+function(expect_hash what exe)
+  run("running the ${what} consumer" ${CMAKE_COMMAND} -E env LD_LIBRARY_PATH=${libdir} ${exe} ${drill} ${STEPS})
+  string(STRIP "${RUN_OUT}" out)
+  message(STATUS "${what} consumer: ${out}")
+  if(NOT out MATCHES "hash ${HASH}$")
+    message(FATAL_ERROR "the ${what} consumer printed '${out}', expected hash ${HASH}")
+  endif()
+endfunction()
+
 file(REMOVE_RECURSE ${PREFIX})
 run("cmake --install" ${CMAKE_COMMAND} --install ${BIN} --prefix ${PREFIX})
 file(GLOB_RECURSE libs LIST_DIRECTORIES false RELATIVE ${PREFIX} ${PREFIX}/*libcrowdmpm.so*)
@@ -42,12 +52,7 @@ set(cbuild ${PREFIX}/_consumer_build)
 run("configuring the consumer" ${CMAKE_COMMAND} -S ${SRC}/consumer -B ${cbuild} -DCMAKE_PREFIX_PATH=${PREFIX}
     -DCMAKE_C_COMPILER=${CC} -DCMAKE_BUILD_RULE_MESSAGES=OFF)
 run("building the consumer" ${CMAKE_COMMAND} --build ${cbuild})
-run("running the consumer" ${CMAKE_COMMAND} -E env LD_LIBRARY_PATH=${libdir} ${cbuild}/consumer ${drill} ${STEPS})
-string(STRIP "${RUN_OUT}" cmake_out)
-message(STATUS "find_package consumer: ${cmake_out}")
-if(NOT cmake_out MATCHES "hash ${HASH}$")
-  message(FATAL_ERROR "the find_package consumer printed '${cmake_out}', expected hash ${HASH}")
-endif()
+expect_hash("find_package" ${cbuild}/consumer)
 
 # 2. pkg-config.
 find_program(PKG_CONFIG pkg-config REQUIRED)
@@ -55,12 +60,7 @@ run("pkg-config" ${CMAKE_COMMAND} -E env PKG_CONFIG_PATH=${libdir}/pkgconfig ${P
 string(STRIP "${RUN_OUT}" flags)
 separate_arguments(flags UNIX_COMMAND "${flags}")
 run("compiling with pkg-config flags" ${CC} ${SRC}/consumer/consumer.c -o ${cbuild}/consumer_pc ${flags})
-run("running the pkg-config consumer" ${CMAKE_COMMAND} -E env LD_LIBRARY_PATH=${libdir} ${cbuild}/consumer_pc ${drill} ${STEPS})
-string(STRIP "${RUN_OUT}" pc_out)
-message(STATUS "pkg-config consumer: ${pc_out}")
-if(NOT pc_out MATCHES "hash ${HASH}$")
-  message(FATAL_ERROR "the pkg-config consumer printed '${pc_out}', expected hash ${HASH}")
-endif()
+expect_hash("pkg-config" ${cbuild}/consumer_pc)
 
 # 3. The installed CLI reads the installed scenarios.
 run("the installed CLI" ${PREFIX}/bin/crowdmpm validate ${drill})
