@@ -20,6 +20,7 @@
 #include "engine/vision/video_job.hpp"
 #include "engine/vision/video_learn.hpp"
 #include "engine/observe/analyze.hpp"
+#include "engine/observe/jpsreport.hpp"
 #include "engine/report/report.hpp"
 
 using namespace crowdmpm;
@@ -60,6 +61,7 @@ const char* kUsage =
     "                      and the recording disagree, fit candidate terms, keep those that\n"
     "                      lower the held-out error (report.json, pictures, summary.txt)\n"
     "  analyze TRAJECTORIES --out DIR (--spec MEASUREMENTS.json | --scenario S)\n"
+    "  analyze JPSREPORT_INI_OR_FOLDER --out DIR\n"
     "                      PedPy-style measurements of any trajectory file (text or JuPedSim\n"
     "                      SQLite): classic and Voronoi density and speed, N(t) over lines,\n"
     "                      fundamental diagram, level of service, crowd pressure\n"
@@ -278,10 +280,13 @@ const char* kRenderHelp =
 
 const char* kAnalyzeHelp =
     "usage: crowdmpm analyze TRAJECTORIES --out DIR (--spec MEASUREMENTS.json | --scenario S)\n"
+    "       crowdmpm analyze JPSREPORT_INI_OR_FOLDER --out DIR\n"
     "\n"
     "Measures a trajectory file (PeTrack text or JuPedSim SQLite, real or simulated) the way\n"
     "PedPy and JPSreport do (docs/analyze.md). --spec names the walkable area, measurement\n"
-    "areas and lines; --scenario takes its measurement areas and its domain instead. Writes:\n"
+    "areas and lines; --scenario takes its measurement areas and its domain instead; a\n"
+    "JPSreport project (ini.xml, or the folder holding it) gives its areas (area_B), lines\n"
+    "(area_L), frame_step, trajectory file and geometry (geo.xml). Writes:\n"
     "  area_<id>.csv       per frame: people inside, classic and Voronoi density (persons/m2)\n"
     "                      and speed (m/s), Fruin level of service (A-F) of the Voronoi density\n"
     "  fd_<id>.csv         fundamental diagram: mean speed and specific flow per density bin\n"
@@ -910,13 +915,26 @@ int cmd_analyze(const Args& a) {
   if (a.help) { std::fputs(kAnalyzeHelp, stdout); return 0; }
   if (a.positional.size() != 1) usage_error("analyze needs exactly one TRAJECTORIES file");
   if (a.out.empty()) usage_error("analyze needs --out DIR");
-  if (a.spec.empty() == a.scenario.empty()) usage_error("analyze needs --spec FILE or --scenario S (one of them)");
+  const std::string& input = a.positional[0];
+  const bool project = a.spec.empty() && a.scenario.empty() &&
+                       (std::filesystem::is_directory(input) || (input.size() > 4 && input.substr(input.size() - 4) == ".xml"));
+  if (!project && a.spec.empty() == a.scenario.empty())
+    usage_error("analyze needs --spec FILE or --scenario S (one of them), or a JPSreport ini.xml (or its folder)");
   if (a.frame_step != static_cast<long>(std::floor(static_cast<double>(a.frame_step)))) usage_error("--frame-step must be whole");
-  AnalysisSpec spec = !a.spec.empty() ? AnalysisSpec::from_json(load_json_file(a.spec, a.input), a.spec)
-                                      : AnalysisSpec::from_scenario(a.scenario, a.input);
+  AnalysisSpec spec;
+  std::string trajectories = input;
+  if (project) {
+    JpsreportProject p = read_jpsreport_project(input, a.input);
+    spec = p.spec;
+    trajectories = p.trajectories;
+    for (const auto& n : p.notes) std::printf("note: %s\n", n.c_str());
+  } else {
+    spec = !a.spec.empty() ? AnalysisSpec::from_json(load_json_file(a.spec, a.input), a.spec)
+                           : AnalysisSpec::from_scenario(a.scenario, a.input);
+  }
   if (a.frame_step > 0) spec.frame_step = a.frame_step;
-  const TrajectorySet t = TrajectorySet::read(a.positional[0], a.framerate, a.input);
-  std::printf("%s: %zu people, frames %ld-%ld at %g fps\n", a.positional[0].c_str(), t.person_count(), t.frame_min(),
+  const TrajectorySet t = TrajectorySet::read(trajectories, a.framerate, a.input);
+  std::printf("%s: %zu people, frames %ld-%ld at %g fps\n", trajectories.c_str(), t.person_count(), t.frame_min(),
               t.frame_max(), t.framerate);
   const json summary = run_analysis(t, spec, a.out);
   for (const auto& area : summary["areas"])

@@ -205,6 +205,10 @@ if [ -f "$ao" ]; then
   for f in area_bottleneck.csv fd_bottleneck.csv nt_line2.csv nt_line4.csv; do
     [ -s "$work/ao/$f" ] || { echo "FAIL analyze AO_300: $f missing"; failures=$((failures + 1)); }
   done
+  # The JPSreport project itself (ini.xml, geo.xml) gives the same measurements.
+  check "analyze JPSreport project" 0 "$cli" analyze "$(dirname "$ao")" --out "$work/ao_ini"
+  cmp -s "$work/ao_ini/area_area1.csv" "$work/ao/area_bottleneck.csv" ||
+    { echo "FAIL analyze JPSreport project: area_area1.csv differs from the spec's area_bottleneck.csv"; failures=$((failures + 1)); }
 else
   echo "SKIP analyze AO_300: ../shared/data is absent"
 fi

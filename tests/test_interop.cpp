@@ -166,6 +166,7 @@ TEST_CASE("JuPedSim SQLite input errors name the file and what is wrong", "[inte
 // ---- PedPy-style measurements against JPSreport's reference results ---------------------------
 
 #include "engine/observe/analyze.hpp"
+#include "engine/observe/jpsreport.hpp"
 
 namespace {
 
@@ -325,4 +326,46 @@ TEST_CASE("Helbing's crowd pressure is density times the variance of the local v
   // The same crowd walking steadily has no pressure.
   std::fill(vel.begin(), vel.end(), Vec2(u, 0));
   CHECK(crowd_pressure(t, vel, 0, 19, Vec2(5, 5), Vec2(15, 15), 0.5, 0.7).max_pressure() < 1e-12);
+}
+
+TEST_CASE("a JPSreport project (ini.xml and geo.xml) reads as the analyze spec written by hand", "[interop][data]") {
+  const std::string data = test::shared_data_dir();
+  if (data.empty()) {
+    WARN("SKIPPED: ../shared/data is absent (reference/jpsreport_bottleneck_AO_300)");
+    return;
+  }
+  const std::string dir = data + "/reference/jpsreport_bottleneck_AO_300";
+  const JpsreportProject p = read_jpsreport_project(dir);  // the folder: its ini.xml
+  const std::string spec_path = test::repo_path("tests/data/ao300_measurement.json");
+  const AnalysisSpec hand = AnalysisSpec::from_json(load_json_file(spec_path), spec_path);
+  CHECK(std::filesystem::equivalent(p.trajectories, dir + "/traj.txt"));
+  CHECK(p.spec.frame_step == 5);  // frame_step="10", halved as JPSreport does
+  CHECK(p.spec.walkable == hand.walkable);
+  REQUIRE(p.spec.areas.size() == 1);
+  CHECK(p.spec.areas[0].id == "area1");
+  CHECK(polygon_area(p.spec.areas[0].polygon) == Approx(polygon_area(hand.areas[0].polygon)));
+  REQUIRE(p.spec.lines.size() == 2);
+  CHECK(p.spec.lines[1].id == "line4");
+  CHECK(p.spec.lines[1].from == hand.lines[1].from);
+  CHECK(p.spec.lines[1].to == hand.lines[1].to);
+  CHECK(p.notes.empty());
+}
+
+TEST_CASE("malformed JPSreport project files are named with their line", "[interop]") {
+  const std::string dir = temp_file("crowdmpm_interop_jps");
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  auto write = [&](const std::string& name, const std::string& text) {
+    std::ofstream(dir + "/" + name) << text;
+    return dir + "/" + name;
+  };
+  CHECK_THROWS_WITH(read_jpsreport_project(write("a.xml", "<JPSreport>\n<trajectories>\n</JPSreport>")),
+                    Catch::Contains("a.xml:3: closing tag </JPSreport> does not match"));
+  CHECK_THROWS_WITH(read_jpsreport_project(write("b.xml", "<other/>")), Catch::Contains("no <JPSreport> element"));
+  CHECK_THROWS_WITH(read_jpsreport_project(write("c.xml", "<JPSreport><trajectories><file name=\"t.txt\"/></trajectories>"
+                                                          "<measurement_areas><area_L id=\"1\"><start x=\"0\" y=\"a\"/>"
+                                                          "<end x=\"1\" y=\"0\"/></area_L></measurement_areas></JPSreport>")),
+                    Catch::Contains("y=\"a\" is not a number"));
+  CHECK_THROWS_WITH(read_jpsreport_project(dir), Catch::Contains("ini.xml: cannot open file for reading (no such file)"));
+  std::filesystem::remove_all(dir);
 }
