@@ -207,7 +207,6 @@ std::vector<AreaFrame> measure_area(const TrajectorySet& t, const Polygon2& area
                      Vec2(wlo.x() - margin, whi.y() + margin)};
   std::vector<AreaFrame> out;
   std::vector<Vec2> pts;
-  std::vector<size_t> order;
   for (long f = t.frame_min(); f <= t.frame_max(); ++f) {
     AreaFrame r;
     r.frame = f;
@@ -224,24 +223,41 @@ std::vector<AreaFrame> measure_area(const TrajectorySet& t, const Polygon2& area
       }
     r.classic_density = static_cast<double>(r.inside) / area_m2;
     r.classic_speed = r.inside ? speed_sum / static_cast<double>(r.inside) : 0;
+    // People bucketed on a grid of about two per bucket, for nearest-first neighbour search.
+    Vec2 plo = pts.empty() ? Vec2::Zero() : pts[0], phi = plo;
+    for (const Vec2& q : pts) plo = plo.cwiseMin(q), phi = phi.cwiseMax(q);
+    const double extent = std::max({phi.x() - plo.x(), phi.y() - plo.y(), 1e-3});
+    const double bucket = std::max(0.25, extent * std::sqrt(2.0 / std::max<double>(1.0, static_cast<double>(pts.size()))));
+    const int bx = static_cast<int>((phi.x() - plo.x()) / bucket) + 1, by = static_cast<int>((phi.y() - plo.y()) / bucket) + 1;
+    std::vector<std::vector<size_t>> buckets(static_cast<size_t>(bx) * static_cast<size_t>(by));
+    auto bucket_of = [&](const Vec2& q) {
+      return std::pair<int, int>(std::min(bx - 1, static_cast<int>((q.x() - plo.x()) / bucket)),
+                                 std::min(by - 1, static_cast<int>((q.y() - plo.y()) / bucket)));
+    };
+    for (size_t k = 0; k < pts.size(); ++k) {
+      const auto [ix, iy] = bucket_of(pts[k]);
+      buckets[static_cast<size_t>(iy) * static_cast<size_t>(bx) + static_cast<size_t>(ix)].push_back(k);
+    }
     for (size_t i = 0; i < pts.size(); ++i) {
-      // The Voronoi cell: the box cut by the bisector with every other person, nearest first,
-      // until the next one is farther than twice the cell's reach.
-      order.resize(pts.size());
-      std::iota(order.begin(), order.end(), size_t{0});
-      std::sort(order.begin(), order.end(), [&](size_t a, size_t c) {
-        return (pts[a] - pts[i]).squaredNorm() < (pts[c] - pts[i]).squaredNorm();
-      });
+      // The Voronoi cell: the box cut by the bisector with every other person, ring of buckets
+      // by ring, until everyone not yet seen is farther than twice the cell's reach.
       Polygon2 cell = box;
-      for (size_t j : order) {
-        if (j == i) continue;
+      const auto [cx, cy] = bucket_of(pts[i]);
+      for (int ring = 0; cell.size() >= 3; ++ring) {
         double reach = 0;
         for (const Vec2& q : cell) reach = std::max(reach, (q - pts[i]).norm());
-        const Vec2 d = pts[j] - pts[i];
-        if (d.norm() > 2 * reach) break;
-        if (d.norm() < 1e-12) continue;  // two people at one point share the cell
-        cell = clip_halfplane(cell, (pts[i] + pts[j]) * 0.5, d);
-        if (cell.size() < 3) break;
+        if (ring > 0 && static_cast<double>(ring - 1) * bucket > 2 * reach) break;  // rings >= ring are at least (ring-1) buckets away
+        if (ring > std::max(bx, by)) break;
+        for (int iy = cy - ring; iy <= cy + ring; ++iy)
+          for (int ix = cx - ring; ix <= cx + ring; ++ix) {
+            if (std::max(std::abs(ix - cx), std::abs(iy - cy)) != ring || ix < 0 || iy < 0 || ix >= bx || iy >= by) continue;
+            for (size_t j : buckets[static_cast<size_t>(iy) * static_cast<size_t>(bx) + static_cast<size_t>(ix)]) {
+              const Vec2 d = pts[j] - pts[i];
+              if (j == i || d.norm() < 1e-12) continue;  // two people at one point share the cell
+              cell = clip_halfplane(cell, (pts[i] + pts[j]) * 0.5, d);
+              if (cell.size() < 3) break;
+            }
+          }
       }
       if (cell.size() < 3) continue;
       // Clipped by the walkable area: pieces per triangle, joined across shared edges that the
