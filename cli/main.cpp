@@ -396,7 +396,11 @@ Args parse_args(int argc, char** argv, int first) {
     if (s == "--help" || s == "-h") a.help = true;
     else if (s == "--out") a.out = value("--out");
     else if (s == "--spec") a.spec = value("--spec");
-    else if (s == "--frame-step") a.frame_step = static_cast<long>(parse_double(s, value("--frame-step"), 1, 1000, "a whole number of frames in [1, 1000]"));
+    else if (s == "--frame-step") {
+      const double n = parse_double(s, value("--frame-step"), 1, 1000, "a whole number of frames in [1, 1000]");
+      if (n != std::floor(n)) usage_error("--frame-step must be a whole number of frames, got " + format_number(n));
+      a.frame_step = static_cast<long>(n);
+    }
     else if (s == "--framerate") a.framerate = parse_double(s, value("--framerate"), 0.01, 10000, "frames per second in [0.01, 10000]");
     else if (s == "--model") {
       a.models.push_back(value("--model"));
@@ -920,7 +924,6 @@ int cmd_analyze(const Args& a) {
                        (std::filesystem::is_directory(input) || (input.size() > 4 && input.substr(input.size() - 4) == ".xml"));
   if (!project && a.spec.empty() == a.scenario.empty())
     usage_error("analyze needs --spec FILE or --scenario S (one of them), or a JPSreport ini.xml (or its folder)");
-  if (a.frame_step != static_cast<long>(std::floor(static_cast<double>(a.frame_step)))) usage_error("--frame-step must be whole");
   AnalysisSpec spec;
   std::string trajectories = input;
   if (project) {
@@ -957,6 +960,7 @@ int cmd_report(const Args& a) {
   ReportOptions opt;
   opt.out = a.out;
   opt.scenario = a.scenario;
+  opt.input = a.input;
   std::printf("wrote %s\n", write_report(a.positional[0], opt).c_str());
   return 0;
 }

@@ -187,6 +187,9 @@ std::vector<std::vector<double>> read_dat(const std::string& path) {
   return rows;
 }
 
+// An L-shaped room (non-convex), for triangulation checks.
+const Polygon2 kLShape = {{0, 0}, {4, 0}, {4, 1}, {1, 1}, {1, 4}, {0, 4}};
+
 struct Deviation {
   double mean_rel = 0, worst = 0;
   long worst_frame = -1;
@@ -367,5 +370,53 @@ TEST_CASE("malformed JPSreport project files are named with their line", "[inter
                                                           "<end x=\"1\" y=\"0\"/></area_L></measurement_areas></JPSreport>")),
                     Catch::Contains("y=\"a\" is not a number"));
   CHECK_THROWS_WITH(read_jpsreport_project(dir), Catch::Contains("ini.xml: cannot open file for reading (no such file)"));
+  // Nesting is bounded (no stack overflow), files named inside stay in the ini's folder, ids differ.
+  std::string deep;
+  for (int i = 0; i < 100000; ++i) deep += "<a>";
+  CHECK_THROWS_WITH(read_jpsreport_project(write("d.xml", deep)), Catch::Contains("nested deeper than"));
+  const std::string lines = "<measurement_areas><area_L id=\"1\"><start x=\"0\" y=\"0\"/><end x=\"1\" y=\"0\"/></area_L>";
+  CHECK_THROWS_WITH(read_jpsreport_project(write("e.xml", "<JPSreport><geometry file=\"/etc/hostname\"/><trajectories><file name=\"t.txt\"/>"
+                                                          "</trajectories>" + lines + "</measurement_areas></JPSreport>")),
+                    Catch::Contains("lies outside the folder"));
+  CHECK_THROWS_WITH(read_jpsreport_project(write("f.xml", "<JPSreport><trajectories><file name=\"t.txt\"/></trajectories>" + lines +
+                                                          lines.substr(std::string("<measurement_areas>").size()) +
+                                                          "</measurement_areas></JPSreport>")),
+                    Catch::Contains("two measurement lines have the id \"line1\""));
+  CHECK_THROWS_WITH(AnalysisSpec::from_json(json::parse(R"({"areas": [{"id": "a", "rect": [0, 0, 1, 1]}, {"id": "a", "rect": [1, 1, 2, 2]}]})"), "s.json"),
+                    Catch::Contains("s.json: two measurement areas have the id \"a\""));
   std::filesystem::remove_all(dir);
+}
+
+TEST_CASE("measurement polygons that cross themselves or have no area are refused", "[interop]") {
+  CHECK_THROWS_WITH(triangulate({{3, 0}, {0, 3}, {1, 0}, {3, 2}, {0, 0}}, "area x"), Catch::Contains("area x: polygon is self-intersecting"));
+  CHECK_THROWS_WITH(triangulate({{0, 0}, {1, 1}, {1, 0}, {0, 1}}, "bow"), Catch::Contains("bow: polygon"));
+  CHECK_THROWS_WITH(triangulate({{0, 0}, {1e-160, 0}, {1e-160, 1e-160}}, "tiny"), Catch::Contains("no area"));
+  CHECK_THROWS_WITH(triangulate({{0, 0}, {NAN, 0}, {1, 1}}, "nan"), Catch::Contains("finite"));
+  // A ring that repeats its start, and one with a vertex in the middle of an edge, are fine.
+  double sum = 0;
+  for (const auto& tri : triangulate({{0, 0}, {2, 0}, {4, 0}, {4, 3}, {0, 3}, {0, 0}}, "ok")) sum += polygon_area(tri);
+  CHECK(sum == Approx(12));
+  sum = 0;
+  for (const auto& tri : triangulate(kLShape, "L")) sum += polygon_area(tri);
+  CHECK(sum == Approx(polygon_area(kLShape)));
+}
+
+TEST_CASE("a gap of 1e9 frames in a recording costs nothing to measure", "[interop]") {
+  TrajectorySet t;
+  t.source = "gap.txt";
+  t.framerate = 25;
+  for (long id = 1; id <= 5; ++id) {
+    t.points.push_back({id, 0, 0.5 * static_cast<double>(id), 0.0});
+    t.points.push_back({id, 1, 0.5 * static_cast<double>(id), 0.1});
+    t.points.push_back({id, 1000000000, 0.5 * static_cast<double>(id), 1.0});
+  }
+  t.sort_checked();
+  const auto speeds = individual_speeds(t, 1);
+  const auto m = measure_area(t, {{0, -1}, {3, -1}, {3, 2}, {0, 2}}, {{-1, -2}, {4, -2}, {4, 3}, {-1, 3}}, speeds);
+  REQUIRE(m.size() == 3);  // the recorded frames only
+  CHECK(m[2].frame == 1000000000);
+  CHECK(m[2].inside == 5);
+  CHECK(crossings(t, Vec2(0, 0.5), Vec2(3, 0.5)).size() == 3);
+  const PressurePeak p = peak_crowd_pressure(t, individual_velocities(t, 1), 50, Vec2(-1, -1), Vec2(4, 2), 0.5, 0.7);
+  CHECK(p.windows.size() == 2);
 }

@@ -3,6 +3,7 @@
 #include <sqlite3.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -90,13 +91,30 @@ JupedsimSqliteWriter::JupedsimSqliteWriter(const std::string& path, double frame
                                            double xmin, double ymin, double xmax, double ymax)
     : path_(path) {
   if (!(framerate > 0) || !std::isfinite(framerate)) throw Error(path + ": frame rate must be positive, got " + number_text(framerate));
-  std::remove(path.c_str());  // a new file, not rows appended to an old one
+  // A new file, not rows appended to an old one.
+  if (std::remove(path.c_str()) != 0 && errno != ENOENT)
+    throw Error(path + ": cannot replace the existing file: " + std::strerror(errno));
   if (sqlite3_open_v2(path.c_str(), &db_, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE, nullptr) != SQLITE_OK) {
     std::string why = db_ ? sqlite3_errmsg(db_) : "out of memory";
     sqlite3_close(db_);
     db_ = nullptr;
     throw Error(path + ": cannot create the SQLite file: " + why);
   }
+  try {
+    create(framerate, walkable_wkt, xmin, ymin, xmax, ymax);
+  } catch (...) {
+    // The destructor does not run for a constructor that throws.
+    sqlite3_finalize(insert_);
+    sqlite3_finalize(frame_);
+    sqlite3_close(db_);
+    insert_ = frame_ = nullptr;
+    db_ = nullptr;
+    throw;
+  }
+}
+
+void JupedsimSqliteWriter::create(double framerate, const std::string& walkable_wkt, double xmin, double ymin, double xmax,
+                                  double ymax) {
   exec("PRAGMA journal_mode = OFF");
   exec("PRAGMA synchronous = OFF");
   exec("BEGIN");
@@ -237,10 +255,10 @@ TrajectorySet read_jupedsim_sqlite(const std::string& path, double framerate_ove
   ReadOnlyDb db(path);
   TrajectorySet t;
   t.source = path;
-  const std::string fps = db.metadata("fps");
   if (framerate_override > 0) {
     t.framerate = framerate_override;
   } else {
+    const std::string fps = db.metadata("fps");
     char* end = nullptr;
     t.framerate = fps.empty() ? 0 : std::strtod(fps.c_str(), &end);
     if (fps.empty() || !end || *end != '\0' || !(t.framerate > 0) || !std::isfinite(t.framerate))

@@ -47,6 +47,7 @@ class JupedsimSqliteWriter {
   void close();
 
  private:
+  void create(double framerate, const std::string& walkable_wkt, double xmin, double ymin, double xmax, double ymax);
   void exec(const char* sql);
   [[noreturn]] void fail(const std::string& what);
   sqlite3* db_ = nullptr;

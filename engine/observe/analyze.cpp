@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <map>
+#include <set>
 
 #include "engine/core/error.hpp"
 #include "engine/geometry/shape.hpp"
@@ -80,11 +81,20 @@ AnalysisSpec AnalysisSpec::from_json(const json& j, const std::string& source) {
     p->allow_only({"cell", "radius", "window"});
     s.pressure_cell = p->in_range("cell", 0.05, 10, 0.5);
     s.pressure_radius = p->in_range("radius", 0.1, 10, 0.7);
-    s.pressure_window = p->positive("window", 10);
+    s.pressure_window = p->in_range("window", 0.1, 3600, 10);
   }
   s.fd_bin = r.in_range("fd_bin", 0.05, 5, 0.5);
   if (s.areas.empty() && s.lines.empty()) r.fail("no \"areas\" and no \"lines\": nothing to measure");
+  s.check_unique_ids(source);
   return s;
+}
+
+void AnalysisSpec::check_unique_ids(const std::string& where) const {
+  std::set<std::string> a, l;
+  for (const auto& x : areas)
+    if (!a.insert(x.id).second) throw Error(where + ": two measurement areas have the id \"" + x.id + "\"");
+  for (const auto& x : lines)
+    if (!l.insert(x.id).second) throw Error(where + ": two measurement lines have the id \"" + x.id + "\"");
 }
 
 AnalysisSpec AnalysisSpec::from_scenario(const std::string& path, const InputPolicy& policy) {
@@ -96,6 +106,7 @@ AnalysisSpec AnalysisSpec::from_scenario(const std::string& path, const InputPol
     if (a.shape.kind != Shape::Kind::Polygon) continue;
     check_id(a.id, path + ": measurement area");
     s.areas.push_back({a.id, a.shape.points});
+    triangulate(a.shape.points, path + ": measurement area \"" + a.id + "\"");
   }
   if (s.areas.empty()) throw Error(path + ": the scenario has no rect or polygon measurement areas (give --spec)");
   return s;
@@ -106,6 +117,7 @@ json run_analysis(const TrajectorySet& t, const AnalysisSpec& spec, const std::s
   fs::create_directories(out_dir, ec);
   if (ec) throw Error(out_dir + ": cannot create output folder: " + ec.message());
   auto file = [&](const std::string& name) { return (fs::path(out_dir) / name).string(); };
+  if (t.points.empty()) throw Error(t.source + ": no trajectory rows to analyze");
   Vec2 lo(t.points[0].x, t.points[0].y), hi = lo;
   for (const auto& p : t.points) lo = lo.cwiseMin(Vec2(p.x, p.y)), hi = hi.cwiseMax(Vec2(p.x, p.y));
   Polygon2 walkable = spec.walkable;
@@ -192,22 +204,12 @@ json run_analysis(const TrajectorySet& t, const AnalysisSpec& spec, const std::s
   }
   // Crowd pressure in consecutive windows; the map of the window with the highest peak.
   const long window = std::max(2L, std::lround(spec.pressure_window * t.framerate));
-  PressureField worst;
-  long worst_from = t.frame_min();
+  const PressurePeak peak =
+      peak_crowd_pressure(t, velocities, window, lo - Vec2(1, 1), hi + Vec2(1, 1), spec.pressure_cell, spec.pressure_radius);
+  const PressureField& worst = peak.field;
+  const long worst_from = peak.from;
   json windows = json::array();
-  for (long f = t.frame_min(); f <= t.frame_max(); f += window) {
-    auto [b, e] = t.frame(f);
-    (void)b;
-    PressureField p;
-    try {
-      p = crowd_pressure(t, velocities, f, f + window - 1, lo - Vec2(1, 1), hi + Vec2(1, 1), spec.pressure_cell,
-                         spec.pressure_radius);
-    } catch (const Error&) {
-      continue;  // a window without people
-    }
-    windows.push_back({{"from_s", static_cast<double>(f) / t.framerate}, {"max", p.max_pressure()}});
-    if (worst.pressure.empty() || p.max_pressure() > worst.max_pressure()) worst = std::move(p), worst_from = f;
-  }
+  for (const auto& [from, max] : peak.windows) windows.push_back({{"from_s", from}, {"max", max}});
   if (!worst.pressure.empty()) {
     OutFile out(file("crowd_pressure.csv"));
     std::fprintf(out.f, "x,y,mean_density,crowd_pressure\n");

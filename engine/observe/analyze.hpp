@@ -31,6 +31,8 @@ struct AnalysisSpec {
   // "from", "to"}], "frame_step", "pressure": {"cell", "radius", "window"}, "fd_bin"}; errors
   // name the JSON path.
   static AnalysisSpec from_json(const json& j, const std::string& source);
+  // Throws Error naming `where` if two areas or two lines share an id (they name output files).
+  void check_unique_ids(const std::string& where) const;
   // From a scenario file: its measurement areas and its domain as the walkable area.
   static AnalysisSpec from_scenario(const std::string& path, const InputPolicy& policy);
 };

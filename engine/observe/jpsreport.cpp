@@ -39,6 +39,8 @@ struct Element {
 
 class XmlReader {
  public:
+  static constexpr size_t kMaxDepth = 64;  // JPSreport files nest 5 deep; a cap keeps recursion bounded
+
   XmlReader(const std::string& text, std::string source) : s_(text), source_(std::move(source)) {}
 
   std::unique_ptr<Element> parse() {
@@ -97,6 +99,7 @@ class XmlReader {
         Element* raw = e.get();
         stack.back()->children.push_back(std::move(e));
         if (!closed) stack.push_back(raw);
+        if (stack.size() > kMaxDepth) fail("elements nested deeper than " + std::to_string(kMaxDepth));
       }
     }
     if (stack.size() != 1) fail("<" + stack.back()->name + "> is never closed");
@@ -180,7 +183,9 @@ JpsreportProject read_jpsreport_project(const std::string& ini_arg, const InputP
   const Element* file = traj ? traj->first("file") : nullptr;
   if (!file || attr(*file, "name").empty()) throw Error(ini + ": no <trajectories><file name=\"...\"/> element");
   const Element* loc = traj->first("path");
-  p.trajectories = (base / (loc ? attr(*loc, "location", ".") : ".") / attr(*file, "name")).lexically_normal().string();
+  const std::string folder = base.empty() ? "." : base.string();
+  p.trajectories = confined_path(folder, folder, (fs::path(loc ? attr(*loc, "location", ".") : ".") / attr(*file, "name")).string(),
+                                 policy, ini + ": <trajectories>");
   if (traj->first("file") != traj->all("file").back()) p.notes.push_back("only the first trajectory file of " + ini + " is read");
   // Measurement areas and lines.
   for (const Element* a : root->all("area_B")) {
@@ -196,21 +201,28 @@ JpsreportProject read_jpsreport_project(const std::string& ini_arg, const InputP
                             Vec2(number_attr(*e, "x", ini), number_attr(*e, "y", ini))});
   }
   if (p.spec.areas.empty() && p.spec.lines.empty()) throw Error(ini + ": no <area_B> or <area_L> to measure");
+  p.spec.check_unique_ids(ini);
   // JPSreport takes half its frame_step on each side of a frame.
   if (const Element* v = root->first("velocity")) {
     const double fs_ = number_attr(*v, "frame_step", ini);
-    if (!(fs_ >= 2)) throw Error(ini + ": <velocity frame_step> must be at least 2");
-    p.spec.frame_step = std::lround(fs_ / 2);
+    if (!(fs_ >= 2 && fs_ <= 2000))
+      throw Error(ini + ":" + std::to_string(v->line) + ": <velocity frame_step> must be in [2, 2000], got " + attr(*v, "frame_step"));
+    p.spec.frame_step = static_cast<long>(fs_) / 2;
     if (attr(*v, "set_movement_direction", "None") != "None")
       p.notes.push_back("<velocity set_movement_direction> is ignored: speeds are the norm of the velocity");
   }
   // Geometry: the polygon of the (single) subroom is the walkable area.
   if (const Element* g = root->first("geometry")) {
-    const std::string geo_path = (base / attr(*g, "file")).lexically_normal().string();
+    if (attr(*g, "file").empty()) throw Error(ini + ":" + std::to_string(g->line) + ": <geometry> has no file attribute");
+    const std::string geo_path = confined_path(folder, folder, attr(*g, "file"), policy, ini + ": <geometry>");
     const std::string geo_text = read_input_file(geo_path, policy);
     const auto geo = XmlReader(geo_text, geo_path).parse();
     std::vector<Polygon2> rings;
-    for (const Element* poly : geo->all("polygon")) rings.push_back(vertices(*poly, "px", "py", geo_path));
+    for (const Element* poly : geo->all("polygon")) {
+      rings.push_back(vertices(*poly, "px", "py", geo_path));
+      if (rings.back().size() < 2)
+        throw Error(geo_path + ":" + std::to_string(poly->line) + ": <polygon> needs at least 2 vertices");
+    }
     if (rings.size() == 1 && geo->all("obstacle").empty()) {
       p.spec.walkable = rings.front();
     } else if (!rings.empty()) {

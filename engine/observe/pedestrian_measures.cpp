@@ -131,8 +131,26 @@ double polygon_area(const Polygon2& p) { return p.size() < 3 ? 0 : std::abs(sign
 
 std::vector<Polygon2> triangulate(const Polygon2& input, const std::string& what) {
   if (input.size() < 3) throw Error(what + ": a polygon needs at least 3 points");
+  for (const Vec2& q : input)
+    if (!std::isfinite(q.x()) || !std::isfinite(q.y()) || std::abs(q.x()) > 1e7 || std::abs(q.y()) > 1e7)
+      throw Error(what + ": coordinates must be finite and within 1e7 m");
   Polygon2 p = ccw(input);
-  if (polygon_area(p) <= 0) throw Error(what + ": polygon has no area");
+  if (p.size() > 3 && (p.front() - p.back()).norm() < 1e-12) p.pop_back();  // a ring that lists its start twice
+  if (!(polygon_area(p) >= 1e-6)) throw Error(what + ": polygon has no area (below 1e-6 m^2)");
+  // No two edges that are not neighbours may meet (a self-intersecting ring).
+  const size_t n = p.size();
+  auto side = [](const Vec2& a, const Vec2& b, const Vec2& c) { return cross(b - a, c - a); };
+  for (size_t i = 0; i < n; ++i)
+    for (size_t j = i + 1; j < n; ++j) {
+      if (j == i + 1 || (i == 0 && j == n - 1)) continue;
+      const Vec2 &a = p[i], &b = p[(i + 1) % n], &c = p[j], &d = p[(j + 1) % n];
+      const double d1 = side(c, d, a), d2 = side(c, d, b), d3 = side(a, b, c), d4 = side(a, b, d);
+      const bool proper = ((d1 > 0 && d2 < 0) || (d1 < 0 && d2 > 0)) && ((d3 > 0 && d4 < 0) || (d3 < 0 && d4 > 0));
+      const bool touch = segment_distance(a, c, d) < 1e-12 || segment_distance(b, c, d) < 1e-12 ||
+                         segment_distance(c, a, b) < 1e-12 || segment_distance(d, a, b) < 1e-12;
+      if (proper || touch)
+        throw Error(what + ": polygon is self-intersecting (edges " + std::to_string(i + 1) + " and " + std::to_string(j + 1) + " meet)");
+    }
   std::vector<size_t> idx(p.size());
   std::iota(idx.begin(), idx.end(), size_t{0});
   std::vector<Polygon2> out;
@@ -207,7 +225,8 @@ std::vector<AreaFrame> measure_area(const TrajectorySet& t, const Polygon2& area
                      Vec2(wlo.x() - margin, whi.y() + margin)};
   std::vector<AreaFrame> out;
   std::vector<Vec2> pts;
-  for (long f = t.frame_min(); f <= t.frame_max(); ++f) {
+  // Recorded frames only: a gap in the recording has no rows to write (skip_gap).
+  for (long f = t.frame_min(); f <= t.frame_max(); f = t.skip_gap(f + 1, 1)) {
     AreaFrame r;
     r.frame = f;
     r.time = static_cast<double>(f) / t.framerate;
@@ -316,7 +335,7 @@ std::vector<LineCount> crossings(const TrajectorySet& t, const Vec2& a, const Ve
     }
   std::vector<LineCount> out;
   long total = 0;
-  for (long f = t.frame_min(); f <= t.frame_max(); ++f) {
+  for (long f = t.frame_min(); f <= t.frame_max(); f = t.skip_gap(f + 1, 1)) {
     auto it = per_frame.find(f);
     if (it != per_frame.end()) total += it->second;
     out.push_back({f, static_cast<double>(f) / t.framerate, total});
@@ -336,17 +355,23 @@ PressureField crowd_pressure(const TrajectorySet& t, const std::vector<Vec2>& ve
   PressureField pf;
   pf.lo = lo;
   pf.cell = cell;
-  pf.nx = static_cast<int>(std::floor((hi.x() - lo.x()) / cell)) + 1;
-  pf.ny = static_cast<int>(std::floor((hi.y() - lo.y()) / cell)) + 1;
+  // At most 4 million nodes (about 250 MB of work arrays): checked before any cast to int.
+  const double gx = std::floor((hi.x() - lo.x()) / cell) + 1, gy = std::floor((hi.y() - lo.y()) / cell) + 1;
+  if (!(gx * gy <= 4e6))
+    throw Error("crowd pressure: a grid of " + format_number(gx) + " x " + format_number(gy) + " nodes (cell " +
+                format_number(cell) + " m over " + format_number(hi.x() - lo.x()) + " x " + format_number(hi.y() - lo.y()) +
+                " m) is too large: choose a larger cell");
+  pf.nx = static_cast<int>(gx);
+  pf.ny = static_cast<int>(gy);
   const size_t nodes = static_cast<size_t>(pf.nx) * static_cast<size_t>(pf.ny);
-  if (nodes > 50'000'000) throw Error("crowd pressure: grid of " + std::to_string(nodes) + " nodes is too large");
   std::vector<double> rho_sum(nodes, 0), frames_seen(nodes, 0);
   std::vector<Vec2> v_sum(nodes, Vec2::Zero());
   std::vector<double> v2_sum(nodes, 0);
   std::vector<double> w(nodes), wvx(nodes), wvy(nodes);
   const double norm = 1 / (M_PI * R * R), reach = 3 * R;  // exp(-9) cut-off
   long frames = 0;
-  for (long f = std::max(frame_begin, t.frame_min()); f <= std::min(frame_end, t.frame_max()); ++f) {
+  for (long f = t.skip_gap(std::max(frame_begin, t.frame_min()), 1); f <= std::min(frame_end, t.frame_max());
+       f = t.skip_gap(f + 1, 1)) {
     auto [b, e] = t.frame(f);
     if (b == e) continue;
     ++frames;
@@ -379,8 +404,7 @@ PressureField crowd_pressure(const TrajectorySet& t, const std::vector<Vec2>& ve
       frames_seen[k] += 1;
     }
   }
-  if (frames == 0) throw Error("crowd pressure: no frames with people in [" + std::to_string(frame_begin) + ", " +
-                               std::to_string(frame_end) + "]");
+  if (frames == 0) return PressureField{};  // nobody in the window: no field (pressure empty)
   pf.density.assign(nodes, 0);
   pf.pressure.assign(nodes, 0);
   for (size_t k = 0; k < nodes; ++k) {
@@ -391,6 +415,23 @@ PressureField crowd_pressure(const TrajectorySet& t, const std::vector<Vec2>& ve
     pf.pressure[k] = pf.density[k] * var;
   }
   return pf;
+}
+
+PressurePeak peak_crowd_pressure(const TrajectorySet& t, const std::vector<Vec2>& velocities, long window, const Vec2& lo,
+                                 const Vec2& hi, double cell, double R) {
+  if (window < 2 || window > 1'000'000'000) throw Error("crowd pressure: a window of " + std::to_string(window) + " frames");
+  PressurePeak out;
+  for (long f = t.frame_min(); f <= t.frame_max(); f = t.skip_gap(f + window, window)) {
+    PressureField p = crowd_pressure(t, velocities, f, f + window - 1, lo, hi, cell, R);
+    if (p.pressure.empty()) continue;
+    out.windows.emplace_back(static_cast<double>(f) / t.framerate, p.max_pressure());
+    if (out.field.pressure.empty() || p.max_pressure() > out.field.max_pressure()) {
+      out.field = std::move(p);
+      out.from = f;
+      out.to = f + window;
+    }
+  }
+  return out;
 }
 
 }  // namespace crowdmpm

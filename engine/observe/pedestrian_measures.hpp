@@ -58,7 +58,8 @@ std::vector<LineCount> crossings(const TrajectorySet& t, const Vec2& a, const Ve
 // f(d) = exp(-|d|^2 / R^2) / (pi R^2), the local density rho(r, t) = sum_j f(r_j - r) and the
 // local velocity V(r, t) = sum_j v_j f / sum_j f; the pressure P(r) = mean_t rho(r, t) *
 // Var_t V(r, t) (the variance of the local velocity over the frames of the window, both
-// components summed), in 1/s^2. Nodes at spacing `cell` over [lo, hi].
+// components summed), in 1/s^2. Nodes at spacing `cell` over [lo, hi] (at most 4 million, else
+// Error). A window without people gives an empty field (pressure.empty()).
 struct PressureField {
   Vec2 lo = Vec2::Zero();
   double cell = 0;
@@ -69,5 +70,15 @@ struct PressureField {
 };
 PressureField crowd_pressure(const TrajectorySet& t, const std::vector<Vec2>& velocities, long frame_begin,
                              long frame_end, const Vec2& lo, const Vec2& hi, double cell, double R);
+
+// Crowd pressure in consecutive windows of `window` frames over the recorded frames: the field
+// of the window with the highest peak (empty if nobody is ever there) and each window's peak.
+struct PressurePeak {
+  PressureField field;
+  long from = 0, to = 0;                          // frames of the peak window
+  std::vector<std::pair<double, double>> windows;  // (window start in s, its peak 1/s^2)
+};
+PressurePeak peak_crowd_pressure(const TrajectorySet& t, const std::vector<Vec2>& velocities, long window, const Vec2& lo,
+                                 const Vec2& hi, double cell, double R);
 
 }  // namespace crowdmpm

@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <random>
 #include <sstream>
 
 #include "engine/core/error.hpp"
@@ -150,7 +151,7 @@ std::string write_report(const std::string& dir, const ReportOptions& opt) {
   if (!fs::is_directory(d)) throw Error(dir + ": not a folder (give the --out folder of crowdmpm simulate)");
   const std::string metrics_path = (d / "metrics.json").string();
   if (!fs::exists(metrics_path)) throw Error(dir + ": no metrics.json (run crowdmpm simulate SCENARIO --out " + dir + " first)");
-  const json m = load_json_file(metrics_path);
+  const json m = load_json_file(metrics_path, opt.input);
   JsonReader r(m, metrics_path);
   const std::string name = r.string("scenario", std::string("scenario"));
   std::vector<std::string> notes;  // what could not be shown, and why
@@ -162,7 +163,9 @@ std::string write_report(const std::string& dir, const ReportOptions& opt) {
   std::optional<ScenarioDef> scenario;
   if (!scenario_path.empty()) {
     try {
-      scenario = ScenarioDef::load(scenario_path, InputPolicy{InputPolicy::kDefaultMaxBytes, true});
+      InputPolicy own = opt.input;
+      own.allow_outside_paths = true;  // the scenario the user ran, named by the run itself
+      scenario = ScenarioDef::load(scenario_path, own);
     } catch (const Error& e) {
       if (!opt.scenario.empty()) throw;
       notes.push_back(std::string("the scenario could not be read, maps show no walls: ") + e.what());
@@ -172,45 +175,44 @@ std::string write_report(const std::string& dir, const ReportOptions& opt) {
   // Crowd pressure (Helbing) from the trajectories: the window with the highest peak.
   std::string pressure_png, pressure_text;
   const fs::path traj_sqlite = d / "trajectories.sqlite", traj_txt = d / "trajectories.txt";
-  const std::string traj = fs::exists(traj_sqlite) ? traj_sqlite.string() : fs::exists(traj_txt) ? traj_txt.string() : "";
+  // The newer of the two (a run with trajectories_sqlite off leaves an older .sqlite behind).
+  std::string traj;
+  for (const fs::path& p : {traj_sqlite, traj_txt})
+    if (fs::exists(p) && (traj.empty() || fs::last_write_time(p) > fs::last_write_time(traj))) traj = p.string();
   if (traj.empty()) {
     notes.push_back("no trajectories.sqlite or trajectories.txt: no crowd-pressure map");
   } else {
-    const TrajectorySet t = TrajectorySet::read(traj);
-    const long n = std::max(1L, std::lround(0.5 * t.framerate));
-    const std::vector<Vec2> v = individual_velocities(t, n);
-    Vec2 lo(t.points[0].x, t.points[0].y), hi = lo;
-    for (const auto& p : t.points) lo = lo.cwiseMin(Vec2(p.x, p.y)), hi = hi.cwiseMax(Vec2(p.x, p.y));
-    if (scenario) lo = scenario->geo.lo, hi = scenario->geo.hi;
-    const long window = std::max(2L, std::lround(opt.pressure_window * t.framerate));
-    PressureField best;
-    long best_from = 0;
-    std::vector<std::pair<double, double>> peaks;
-    for (long f = t.frame_min(); f <= t.frame_max(); f += window) {
-      try {
-        PressureField p = crowd_pressure(t, v, f, f + window - 1, lo, hi, 0.25, opt.pressure_radius);
-        peaks.emplace_back(static_cast<double>(f) / t.framerate, p.max_pressure());
-        if (best.pressure.empty() || p.max_pressure() > best.max_pressure()) best = std::move(p), best_from = f;
-      } catch (const Error&) {
+    try {
+      const TrajectorySet t = TrajectorySet::read(traj, 0, opt.input);
+      const long n = std::max(1L, std::lround(0.5 * t.framerate));
+      const std::vector<Vec2> v = individual_velocities(t, n);
+      Vec2 lo(t.points[0].x, t.points[0].y), hi = lo;
+      for (const auto& p : t.points) lo = lo.cwiseMin(Vec2(p.x, p.y)), hi = hi.cwiseMax(Vec2(p.x, p.y));
+      if (scenario) lo = scenario->geo.lo, hi = scenario->geo.hi;
+      const long window = std::max(2L, std::lround(opt.pressure_window * t.framerate));
+      const PressurePeak peak = peak_crowd_pressure(t, v, window, lo, hi, 0.25, opt.pressure_radius);
+      const PressureField& best = peak.field;
+      if (best.pressure.empty()) {
+        notes.push_back(traj + ": nobody in any window: no crowd-pressure map");
+      } else {
+        FieldFrame ff;
+        ff.origin = best.lo, ff.dx = best.cell, ff.nx = best.nx, ff.ny = best.ny;
+        Geometry geo;
+        if (scenario) geo = scenario->geo;
+        else geo.lo = lo, geo.hi = hi;
+        pressure_png = (d / "crowd_pressure.png").string();
+        const double top = std::max(0.04, best.max_pressure());
+        const double from = static_cast<double>(peak.from) / t.framerate, to = static_cast<double>(peak.to) / t.framerate;
+        write_field_png(pressure_png, geo, View::fit(geo, scenario ? scenario->outputs.pixels_per_metre : 0), ff,
+                        best.pressure, 0, top, name + ": crowd pressure, " + num(from) + "-" + num(to) + " s", "1/s2");
+        pressure_text = "Peak crowd pressure " + num(best.max_pressure()) + " s⁻² in the window from " + num(from) +
+                        " s (Helbing et al. 2007: density × variance of the local velocity, R = " + num(opt.pressure_radius) +
+                        " m; crowd turbulence sets in near 0.02 s⁻²" +
+                        (best.max_pressure() > 0.02 ? ", exceeded here" : ", not reached here") + ").";
       }
-    }
-    if (!best.pressure.empty()) {
-      FieldFrame ff;
-      ff.origin = best.lo, ff.dx = best.cell, ff.nx = best.nx, ff.ny = best.ny;
-      Geometry geo;
-      if (scenario) geo = scenario->geo;
-      else geo.lo = lo, geo.hi = hi;
-      pressure_png = (d / "crowd_pressure.png").string();
-      const double top = std::max(0.04, best.max_pressure());
-      write_field_png(pressure_png, geo, View::fit(geo, scenario ? scenario->outputs.pixels_per_metre : 0), ff, best.pressure,
-                      0, top,
-                      name + ": crowd pressure, " + num(static_cast<double>(best_from) / t.framerate) + "-" +
-                          num(static_cast<double>(best_from + window) / t.framerate) + " s",
-                      "1/s2");
-      pressure_text = "Peak crowd pressure " + num(best.max_pressure()) + " s⁻² in the window from " +
-                      num(static_cast<double>(best_from) / t.framerate) + " s (Helbing et al. 2007: density × variance of the local velocity, R = " +
-                      num(opt.pressure_radius) + " m; crowd turbulence sets in near 0.02 s⁻²" +
-                      (best.max_pressure() > 0.02 ? ", exceeded here" : ", not reached here") + ").";
+    } catch (const Error& e) {
+      pressure_png.clear();
+      notes.push_back(std::string("no crowd-pressure map: ") + e.what());
     }
   }
 
@@ -221,10 +223,17 @@ std::string write_report(const std::string& dir, const ReportOptions& opt) {
     const auto [frames, fps] = video_frame_count(mp4.string());
     (void)fps;
     const int stride = static_cast<int>(std::max(1L, (frames + opt.video_max_frames - 1) / std::max(1, opt.video_max_frames)));
-    const fs::path webm = d / "report_video.webm";
-    transcode_to_webm(mp4.string(), webm.string(), stride, opt.video_scale);
-    video_b64 = base64(read_bytes(webm.string()));
-    fs::remove(webm);
+    // Re-encoded in the temporary folder: the run folder may be read-only.
+    std::random_device rd;
+    const fs::path webm = fs::temp_directory_path() / ("crowdmpm_report_" + std::to_string(rd()) + "_" + std::to_string(rd()) + ".webm");
+    try {
+      transcode_to_webm(mp4.string(), webm.string(), stride, opt.video_scale);
+      video_b64 = base64(read_bytes(webm.string()));
+    } catch (const Error& e) {
+      notes.push_back(std::string("no video: ") + e.what());
+    }
+    std::error_code ec;
+    fs::remove(webm, ec);
   } else {
     notes.push_back("no particles.mp4: no video");
   }

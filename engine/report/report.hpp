@@ -3,6 +3,8 @@
 // charts and the video inlined; no network, no external file), docs/report.md.
 #include <string>
 
+#include "engine/core/input.hpp"
+
 namespace crowdmpm {
 
 struct ReportOptions {
@@ -12,10 +14,12 @@ struct ReportOptions {
   double video_scale = 0.5;    // and is scaled by this
   double pressure_window = 10; // s, crowd-pressure window
   double pressure_radius = 0.7;// m
+  InputPolicy input;           // size limit of the files read (--max-input-mb)
 };
 
 // Writes the page and returns its path. Needs DIR/metrics.json; every other file (pictures,
-// particles.mp4, trajectories) is shown when present and named as missing otherwise.
+// particles.mp4, trajectories) is shown when present, and the page lists what it could not show
+// and why (a missing or unreadable file, a video that cannot be re-encoded).
 std::string write_report(const std::string& dir, const ReportOptions& options = {});
 
 }  // namespace crowdmpm

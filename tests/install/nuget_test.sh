@@ -21,6 +21,9 @@ set -- "$WORK"/packages/CrowdMPM.*/lib/net45/CrowdMPM.dll
 [ -f "$1" ] || { echo "nuget install gave no lib/net45/CrowdMPM.dll"; exit 1; }
 pkg=$(dirname "$(dirname "$(dirname "$1")")")
 cp "$1" "$pkg"/runtimes/*/native/* "$WORK/app/"
+# The native module finds libcrowdmpm.so.1 beside itself and nowhere else (no build-tree path).
+runpath=$(readelf -d "$WORK/app/libcrowdmpm_csharp.so" | sed -n 's/.*R\(UN\)\{0,1\}PATH.*\[\(.*\)\]/\2/p')
+[ "$runpath" = '$ORIGIN' ] || { echo "libcrowdmpm_csharp.so has RUNPATH '$runpath', expected \$ORIGIN"; exit 1; }
 cp "$DRILL" "$WORK/app/drill.json"
 cd "$WORK/app"
 "$MCS" -nologo -r:CrowdMPM.dll -out:Consumer.exe "$HERE/Consumer.cs"

@@ -14,6 +14,10 @@ echo "wheel: $(basename "$1")"
 "$PY" -m venv --system-site-packages "$WORK/venv"
 "$WORK/venv/bin/python" -m pip install --no-index --quiet "$1"
 cp "$DRILL" "$WORK/run/drill.json"
+# The extension finds libcrowdmpm.so.1 beside itself and nowhere else (no build-tree path).
+set -- "$WORK"/venv/lib/python3*/site-packages/crowdmpm/_crowdmpm*.so
+runpath=$(readelf -d "$1" | sed -n 's/.*R\(UN\)\{0,1\}PATH.*\[\(.*\)\]/\2/p')
+[ "$runpath" = '$ORIGIN' ] || { echo "$(basename "$1") has RUNPATH '$runpath', expected \$ORIGIN"; exit 1; }
 cd "$WORK/run"
 env -u PYTHONPATH -u LD_LIBRARY_PATH "$WORK/venv/bin/python" - "$STEPS" "$HASH" "$WORK/venv" <<'PYEOF'
 import os, sys
