@@ -420,3 +420,24 @@ TEST_CASE("a gap of 1e9 frames in a recording costs nothing to measure", "[inter
   const PressurePeak p = peak_crowd_pressure(t, individual_velocities(t, 1), 50, Vec2(-1, -1), Vec2(4, 2), 0.5, 0.7);
   CHECK(p.windows.size() == 2);
 }
+
+TEST_CASE("a Voronoi cut-off bounds a lone person's cell by the cut-off polygon", "[interop]") {
+  // One person alone in a 10 m x 10 m hall: the cell is the hall, or with a cut-off of 0.8 m and
+  // 12 edges the 12-gon of area 3 r^2 = 1.92 m^2. The density in a small square round the person
+  // is 1 / (cell area).
+  TrajectorySet t;
+  t.source = "lone.txt";
+  t.framerate = 10;
+  t.points.push_back({1, 0, 0.0, 0.0});
+  t.points.push_back({2, 0, 4.0, 4.0});  // far away: its bisector does not reach the 12-gon
+  const Polygon2 hall = {{-5, -5}, {5, -5}, {5, 5}, {-5, 5}}, square = {{-0.1, -0.1}, {0.1, -0.1}, {0.1, 0.1}, {-0.1, 0.1}};
+  const std::vector<double> speeds(2, 0.0);
+  const double r = 0.8;
+  CHECK(measure_area(t, square, hall, speeds, r, 12)[0].voronoi_density == Approx(1 / (3 * r * r)).epsilon(1e-9));
+  // Without it the cell is the hall on the person's side of the bisector x + y = 4: 100 m^2 less
+  // the triangle (-1, 5), (5, 5), (5, -1) of 18 m^2.
+  CHECK(measure_area(t, square, hall, speeds)[0].voronoi_density == Approx(1 / 82.0).epsilon(1e-9));
+  const auto spec = AnalysisSpec::from_json(json::parse(R"({"areas": [{"id": "a", "rect": [0, 0, 1, 1]}], "voronoi_cutoff": {"radius": 0.8}})"), "c.json");
+  CHECK(spec.cutoff_radius == 0.8);
+  CHECK(spec.cutoff_edges == 12);
+}

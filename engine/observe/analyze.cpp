@@ -52,7 +52,7 @@ AnalysisSpec AnalysisSpec::from_json(const json& j, const std::string& source) {
   AnalysisSpec s;
   JsonReader r(j, source);
   r.require_object();
-  r.allow_only({"walkable_area", "areas", "lines", "frame_step", "pressure", "fd_bin", "description"});
+  r.allow_only({"walkable_area", "areas", "lines", "frame_step", "pressure", "fd_bin", "voronoi_cutoff", "description"});
   if (auto w = r.get("walkable_area")) {
     s.walkable = w->as_points(3);
     triangulate(s.walkable, w->path());
@@ -84,6 +84,11 @@ AnalysisSpec AnalysisSpec::from_json(const json& j, const std::string& source) {
     s.pressure_window = p->in_range("window", 0.1, 3600, 10);
   }
   s.fd_bin = r.in_range("fd_bin", 0.05, 5, 0.5);
+  if (auto c = r.get("voronoi_cutoff")) {
+    c->allow_only({"radius", "edges"});
+    s.cutoff_radius = c->in_range("radius", 0.05, 100, std::nullopt);
+    s.cutoff_edges = c->integer("edges", 3, 1000, 12);
+  }
   if (s.areas.empty() && s.lines.empty()) r.fail("no \"areas\" and no \"lines\": nothing to measure");
   s.check_unique_ids(source);
   return s;
@@ -134,11 +139,12 @@ json run_analysis(const TrajectorySet& t, const AnalysisSpec& spec, const std::s
                   {"frames", {t.frame_min(), t.frame_max()}},
                   {"people", t.person_count()},
                   {"frame_step", spec.frame_step},
+                  {"voronoi_cutoff", spec.cutoff_radius > 0 ? json{{"radius", spec.cutoff_radius}, {"edges", spec.cutoff_edges}} : json(nullptr)},
                   {"units", {{"density", "persons/m^2"}, {"speed", "m/s"}, {"flow", "persons/s"}, {"crowd_pressure", "1/s^2"}}},
                   {"areas", json::array()},
                   {"lines", json::array()}};
   for (const auto& area : spec.areas) {
-    const std::vector<AreaFrame> m = measure_area(t, area.polygon, walkable, speeds);
+    const std::vector<AreaFrame> m = measure_area(t, area.polygon, walkable, speeds, spec.cutoff_radius, spec.cutoff_edges);
     OutFile out(file("area_" + area.id + ".csv"));
     std::fprintf(out.f, "frame,time_s,people,inside,classic_density,classic_speed,voronoi_density,voronoi_speed,level_of_service\n");
     std::map<char, long> los;

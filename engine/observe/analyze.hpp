@@ -26,9 +26,12 @@ struct AnalysisSpec {
   double pressure_radius = 0.7;  // m, R of the Gaussian weight
   double pressure_window = 10;   // s, window over which the velocity variance is taken
   double fd_bin = 0.5;           // persons/m^2, density bins of the fundamental diagram
+  double cutoff_radius = 0;      // m, Voronoi cells cut by a polygon of this radius (0: no cut-off)
+  int cutoff_edges = 12;         // its edges
 
   // {"walkable_area": [[x, y], ...], "areas": [{"id", "rect" | "polygon"}], "lines": [{"id",
-  // "from", "to"}], "frame_step", "pressure": {"cell", "radius", "window"}, "fd_bin"}; errors
+  // "from", "to"}], "frame_step", "pressure": {"cell", "radius", "window"}, "fd_bin",
+  // "voronoi_cutoff": {"radius", "edges"}}; errors
   // name the JSON path.
   static AnalysisSpec from_json(const json& j, const std::string& source);
   // Throws Error naming `where` if two areas or two lines share an id (they name output files).

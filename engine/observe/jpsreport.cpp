@@ -211,6 +211,14 @@ JpsreportProject read_jpsreport_project(const std::string& ini_arg, const InputP
     if (attr(*v, "set_movement_direction", "None") != "None")
       p.notes.push_back("<velocity set_movement_direction> is ignored: speeds are the norm of the velocity");
   }
+  // <method_D><cut_by_circle enabled="true" radius edges/>: the Voronoi cut-off.
+  for (const Element* c : root->all("cut_by_circle"))
+    if (attr(*c, "enabled") == "true") {
+      p.spec.cutoff_radius = number_attr(*c, "radius", ini);
+      p.spec.cutoff_edges = static_cast<int>(number_attr(*c, "edges", ini));
+      if (!(p.spec.cutoff_radius > 0 && p.spec.cutoff_radius <= 100) || p.spec.cutoff_edges < 3 || p.spec.cutoff_edges > 1000)
+        throw Error(ini + ":" + std::to_string(c->line) + ": <cut_by_circle> needs radius in (0, 100] m and edges in [3, 1000]");
+    }
   // Geometry: the polygon of the (single) subroom is the walkable area.
   if (const Element* g = root->first("geometry")) {
     if (attr(*g, "file").empty()) throw Error(ini + ":" + std::to_string(g->line) + ": <geometry> has no file attribute");

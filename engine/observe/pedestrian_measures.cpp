@@ -212,8 +212,10 @@ std::vector<double> individual_speeds(const TrajectorySet& t, long n) {
 }
 
 std::vector<AreaFrame> measure_area(const TrajectorySet& t, const Polygon2& area, const Polygon2& walkable,
-                                    const std::vector<double>& speeds) {
+                                    const std::vector<double>& speeds, double cutoff_radius, int cutoff_edges) {
   if (speeds.size() != t.points.size()) throw Error("measure_area: one speed per trajectory point is needed");
+  if (cutoff_radius < 0 || (cutoff_radius > 0 && (cutoff_edges < 3 || cutoff_edges > 1000)))
+    throw Error("Voronoi cut-off: radius must be >= 0 and edges in [3, 1000]");
   const double area_m2 = polygon_area(area);
   std::vector<Polygon2> area_tris = triangulate(area, "measurement area");
   for (auto& tri : area_tris) tri = ccw(tri);
@@ -261,6 +263,13 @@ std::vector<AreaFrame> measure_area(const TrajectorySet& t, const Polygon2& area
       // The Voronoi cell: the box cut by the bisector with every other person, ring of buckets
       // by ring, until everyone not yet seen is farther than twice the cell's reach.
       Polygon2 cell = box;
+      if (cutoff_radius > 0) {  // start from the cut-off polygon (counter-clockwise) instead
+        cell.clear();
+        for (int k = 0; k < cutoff_edges; ++k) {
+          const double a = 2 * M_PI * k / cutoff_edges;
+          cell.push_back(pts[i] + cutoff_radius * Vec2(std::cos(a), std::sin(a)));
+        }
+      }
       const auto [cx, cy] = bucket_of(pts[i]);
       for (int ring = 0; cell.size() >= 3; ++ring) {
         double reach = 0;

@@ -40,8 +40,11 @@ struct AreaFrame {
 // Per frame, from frame_min to frame_max (frames without rows give zeros). Voronoi cells are
 // the ordinary Voronoi cells of the frame's people clipped by the walkable area (a simple
 // polygon); where clipping splits a cell, the part holding the person is kept (PedPy's rule).
+// With cutoff_radius > 0 each cell is also cut by the regular cutoff_edges-gon with its vertices
+// on the circle of that radius round the person (PedPy's Cutoff(radius, quad_segments =
+// edges / 4), JPSreport's cut_by_circle).
 std::vector<AreaFrame> measure_area(const TrajectorySet& t, const Polygon2& area, const Polygon2& walkable,
-                                    const std::vector<double>& speeds);
+                                    const std::vector<double>& speeds, double cutoff_radius = 0, int cutoff_edges = 12);
 
 // N(t) over the segment a-b: a person crosses at the first frame t whose step X(t-1) -> X(t)
 // intersects the segment and does not end on it (either direction); counted once. Returns the
