@@ -441,3 +441,25 @@ TEST_CASE("a Voronoi cut-off bounds a lone person's cell by the cut-off polygon"
   CHECK(spec.cutoff_radius == 0.8);
   CHECK(spec.cutoff_edges == 12);
 }
+
+TEST_CASE("N(t) counts each person once at the first step that meets the line", "[interop]") {
+  TrajectorySet t;
+  t.source = "line.txt";
+  t.framerate = 10;
+  // Person 1 steps onto the line at frame 1 (counted there, as JPSreport does) and goes on;
+  // person 2 crosses between frames 2 and 3, comes back and crosses again (counted once);
+  // person 3 walks beside the line's end and never meets it.
+  const double y1[] = {0, 0.5, 1, 1.5}, y2[] = {0, 0.2, 0.4, 0.7}, y3[] = {0, 0.4, 0.8, 1.2};
+  for (long f = 0; f < 4; ++f) {
+    t.points.push_back({1, f, 1.0, y1[f]});
+    t.points.push_back({2, f, 2.0, y2[f]});
+    t.points.push_back({3, f, 5.0, y3[f]});
+  }
+  for (long f = 4; f < 6; ++f) t.points.push_back({2, f, 2.0, f == 4 ? 0.3 : 0.8});
+  t.sort_checked();
+  const auto n = crossings(t, Vec2(0, 0.5), Vec2(3, 0.5));
+  REQUIRE(n.size() == 6);
+  const long expected[] = {0, 1, 1, 2, 2, 2};
+  for (size_t k = 0; k < 6; ++k) CHECK(n[k].count == expected[k]);
+  CHECK(n[3].time == Approx(0.3));
+}

@@ -337,7 +337,7 @@ std::vector<LineCount> crossings(const TrajectorySet& t, const Vec2& a, const Ve
   for (const auto& [id, r] : rows)
     for (size_t k = 1; k < r.size(); ++k) {
       const Vec2 p(r[k - 1]->x, r[k - 1]->y), q(r[k]->x, r[k]->y);
-      if (intersects(p, q) && !on_line(q)) {
+      if (intersects(p, q)) {
         ++per_frame[r[k]->frame];
         break;
       }

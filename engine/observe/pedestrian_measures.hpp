@@ -47,8 +47,9 @@ std::vector<AreaFrame> measure_area(const TrajectorySet& t, const Polygon2& area
                                     const std::vector<double>& speeds, double cutoff_radius = 0, int cutoff_edges = 12);
 
 // N(t) over the segment a-b: a person crosses at the first frame t whose step X(t-1) -> X(t)
-// intersects the segment and does not end on it (either direction); counted once. Returns the
-// cumulative count for every frame from frame_min to frame_max.
+// meets the segment (either direction; a step that ends on it counts, as in JPSreport; PedPy
+// counts the next step instead); counted once. Returns the cumulative count for every recorded
+// frame from frame_min to frame_max.
 struct LineCount {
   long frame = 0;
   double time = 0;
