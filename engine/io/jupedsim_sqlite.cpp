@@ -223,13 +223,8 @@ void JupedsimSqliteWriter::close() {
 
 void write_jupedsim_sqlite(const std::string& path, const TrajectorySet& t, const std::string& walkable_wkt) {
   if (t.points.empty()) throw Error(path + ": no trajectory rows to write");
-  double xmin = t.points[0].x, xmax = xmin, ymin = t.points[0].y, ymax = ymin;
   std::map<long, std::vector<size_t>> by_id;  // each person's rows in frame order
-  for (size_t i = 0; i < t.points.size(); ++i) {
-    const TrackPoint& p = t.points[i];
-    xmin = std::min(xmin, p.x), xmax = std::max(xmax, p.x), ymin = std::min(ymin, p.y), ymax = std::max(ymax, p.y);
-    by_id[p.id].push_back(i);
-  }
+  for (size_t i = 0; i < t.points.size(); ++i) by_id[t.points[i].id].push_back(i);
   std::vector<Vec2> ori(t.points.size(), Vec2(1, 0));
   for (const auto& [id, rows] : by_id)
     for (size_t k = 0; k < rows.size(); ++k) {
@@ -238,7 +233,8 @@ void write_jupedsim_sqlite(const std::string& path, const TrajectorySet& t, cons
       const Vec2 d(t.points[b].x - t.points[a].x, t.points[b].y - t.points[a].y);
       if (d.norm() > 1e-9) ori[rows[k]] = d / d.norm();
     }
-  JupedsimSqliteWriter out(path, t.framerate, walkable_wkt, xmin, ymin, xmax, ymax);
+  const auto [lo, hi] = t.bounds();
+  JupedsimSqliteWriter out(path, t.framerate, walkable_wkt, lo.x(), lo.y(), hi.x(), hi.y());
   std::vector<JupedsimSqliteWriter::Row> rows;
   for (size_t i = 0; i < t.points.size();) {
     const long f = t.points[i].frame;

@@ -122,6 +122,13 @@ void TrajectorySet::sort_checked() {
                   std::to_string(points[i].frame));
 }
 
+std::pair<Vec2, Vec2> TrajectorySet::bounds() const {
+  if (points.empty()) return {Vec2::Zero(), Vec2::Zero()};
+  Vec2 lo(points[0].x, points[0].y), hi = lo;
+  for (const auto& p : points) lo = lo.cwiseMin(Vec2(p.x, p.y)), hi = hi.cwiseMax(Vec2(p.x, p.y));
+  return {lo, hi};
+}
+
 size_t TrajectorySet::person_count() const {
   std::set<long> ids;
   for (const auto& p : points) ids.insert(p.id);

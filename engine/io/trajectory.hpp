@@ -36,6 +36,9 @@ class TrajectorySet {
   // Sorts the points by (frame, id); throws Error naming source for no rows or a duplicate.
   void sort_checked();
 
+  // Smallest and largest x and y of all points (metres); both zero for an empty set.
+  std::pair<Vec2, Vec2> bounds() const;
+
   long frame_min() const { return points.empty() ? 0 : points.front().frame; }
   long frame_max() const { return points.empty() ? 0 : points.back().frame; }
   size_t person_count() const;

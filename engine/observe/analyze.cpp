@@ -123,8 +123,7 @@ json run_analysis(const TrajectorySet& t, const AnalysisSpec& spec, const std::s
   if (ec) throw Error(out_dir + ": cannot create output folder: " + ec.message());
   auto file = [&](const std::string& name) { return (fs::path(out_dir) / name).string(); };
   if (t.points.empty()) throw Error(t.source + ": no trajectory rows to analyze");
-  Vec2 lo(t.points[0].x, t.points[0].y), hi = lo;
-  for (const auto& p : t.points) lo = lo.cwiseMin(Vec2(p.x, p.y)), hi = hi.cwiseMax(Vec2(p.x, p.y));
+  const auto [lo, hi] = t.bounds();
   Polygon2 walkable = spec.walkable;
   if (walkable.empty()) {
     const Vec2 a = lo - Vec2(1, 1), b = hi + Vec2(1, 1);
@@ -228,11 +227,7 @@ json run_analysis(const TrajectorySet& t, const AnalysisSpec& spec, const std::s
                      worst.density[k], worst.pressure[k]);
       }
     out.close();
-    FieldFrame ff;
-    ff.origin = worst.lo;
-    ff.dx = worst.cell;
-    ff.nx = worst.nx;
-    ff.ny = worst.ny;
+    const FieldFrame ff = worst.grid();
     Geometry geo;
     geo.lo = worst.lo;
     geo.hi = worst.lo + Vec2((worst.nx - 1) * worst.cell, (worst.ny - 1) * worst.cell);

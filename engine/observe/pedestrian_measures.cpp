@@ -356,6 +356,15 @@ double PressureField::max_pressure() const {
   return pressure.empty() ? 0 : *std::max_element(pressure.begin(), pressure.end());
 }
 
+FieldFrame PressureField::grid() const {
+  FieldFrame f;
+  f.origin = lo;
+  f.dx = cell;
+  f.nx = nx;
+  f.ny = ny;
+  return f;
+}
+
 PressureField crowd_pressure(const TrajectorySet& t, const std::vector<Vec2>& velocities, long frame_begin,
                              long frame_end, const Vec2& lo, const Vec2& hi, double cell, double R) {
   if (velocities.size() != t.points.size()) throw Error("crowd pressure: one velocity per trajectory point is needed");

@@ -71,6 +71,7 @@ struct PressureField {
   std::vector<double> density;   // mean local density, persons/m^2 (row-major, y rows)
   std::vector<double> pressure;  // 1/s^2
   double max_pressure() const;
+  FieldFrame grid() const;  // the node layout (no values), for pictures of density or pressure
 };
 PressureField crowd_pressure(const TrajectorySet& t, const std::vector<Vec2>& velocities, long frame_begin,
                              long frame_end, const Vec2& lo, const Vec2& hi, double cell, double R);

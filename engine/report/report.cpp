@@ -186,8 +186,7 @@ std::string write_report(const std::string& dir, const ReportOptions& opt) {
       const TrajectorySet t = TrajectorySet::read(traj, 0, opt.input);
       const long n = std::max(1L, std::lround(0.5 * t.framerate));
       const std::vector<Vec2> v = individual_velocities(t, n);
-      Vec2 lo(t.points[0].x, t.points[0].y), hi = lo;
-      for (const auto& p : t.points) lo = lo.cwiseMin(Vec2(p.x, p.y)), hi = hi.cwiseMax(Vec2(p.x, p.y));
+      auto [lo, hi] = t.bounds();
       if (scenario) lo = scenario->geo.lo, hi = scenario->geo.hi;
       const long window = std::max(2L, std::lround(opt.pressure_window * t.framerate));
       const PressurePeak peak = peak_crowd_pressure(t, v, window, lo, hi, 0.25, opt.pressure_radius);
@@ -195,8 +194,7 @@ std::string write_report(const std::string& dir, const ReportOptions& opt) {
       if (best.pressure.empty()) {
         notes.push_back(traj + ": nobody in any window: no crowd-pressure map");
       } else {
-        FieldFrame ff;
-        ff.origin = best.lo, ff.dx = best.cell, ff.nx = best.nx, ff.ny = best.ny;
+        const FieldFrame ff = best.grid();
         Geometry geo;
         if (scenario) geo = scenario->geo;
         else geo.lo = lo, geo.hi = hi;
