@@ -3,6 +3,7 @@
 //
 //   validate fd --model M [--densities 0.5,1,...] [--threads N] [--warmup S] [--measure S]
 //   validate bottleneck --model M [--widths 0.4,0.8,...] [--threads N] [--density D | --density D1,D2,...]
+//                       [--people N | --people N1,N2,...]
 //   validate replay --model M --scenario S --trajectories T --line x0,y0,x1,y1 [--curve CSV]
 //   validate measure --trajectories T --box x0,y0,x1,y1   (classic density and speed, 1 /s)
 //   validate chart --out PNG --title T --x LABEL --y LABEL --series SPEC [--series SPEC ...]
@@ -15,7 +16,8 @@
 // every second for `measure` seconds: the classic density (people / corridor area) and mean speed
 // of a closed system in steady state.
 // bottleneck: a waiting crowd at `density` (3.5 /m^2; one value for every width, or one per
-// width) fills a room 6 m deep in front of a wall with an opening of width b (0.4 m thick) and
+// width) fills a room 6 m deep (deeper where `people`, one value or one per width, asks for more
+// people than that holds) in front of a wall with an opening of width b (0.4 m thick) and
 // leaves through it; the flow is the passages
 // between the 20th and the 80th percentile over their time span (persons/s).
 // Both print CSV on stdout and report the peak count of people in any 1 m x 1 m box (sampled
@@ -38,7 +40,7 @@ using namespace crowdmpm;
 namespace {
 [[noreturn]] void usage(const std::string& msg) {
   std::fprintf(stderr, "validate: %s\nusage: validate fd|bottleneck|replay --model M [--densities LIST | --widths LIST] "
-                       "[--threads N] [--warmup S] [--measure S] [--density D]\n"
+                       "[--threads N] [--warmup S] [--measure S] [--density D] [--people N]\n"
                        "       validate replay --model M --scenario S --trajectories T --line x0,y0,x1,y1 [--curve CSV]\n"
                        "       validate measure --trajectories T --box x0,y0,x1,y1\n"
                        "       validate chart --out PNG --title T --x LABEL --y LABEL --series NAME|CSV|XCOL|YCOL|STYLE|RRGGBB[|YCOL2] ...\n",
@@ -76,14 +78,17 @@ int run_fd(const Model& model, const std::vector<double>& densities, int threads
   return 0;
 }
 
-int run_bottleneck(const Model& model, const std::vector<double>& widths, int threads, const std::vector<double>& density) {
+int run_bottleneck(const Model& model, const std::vector<double>& widths, int threads, const std::vector<double>& density,
+                   const std::vector<double>& people) {
   if (density.size() != 1 && density.size() != widths.size())
     usage("--density needs one value, or one per width (" + std::to_string(widths.size()) + ")");
+  if (people.size() != 1 && people.size() != widths.size())
+    usage("--people needs one value, or one per width (" + std::to_string(widths.size()) + ")");
   std::printf("b,density,agents,J,passages_used,t20,t80,peak_per_m2,wall_seconds\n");
   for (size_t i = 0; i < widths.size(); ++i) {
     const double b = widths[i], rho = density[density.size() == 1 ? 0 : i];
     const auto t0 = std::chrono::steady_clock::now();
-    const BottleneckResult r = bottleneck_flow(model, b, rho, threads);
+    const BottleneckResult r = bottleneck_flow(model, b, rho, threads, people[people.size() == 1 ? 0 : i]);
     const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     std::printf("%g,%g,%zu,%.3f,%zu,%.2f,%.2f,%d,%.1f\n", b, rho, r.agents, r.flow, r.passages, r.t20, r.t80, r.peak_per_m2, secs);
     std::fflush(stdout);
@@ -196,6 +201,7 @@ int main(int argc, char** argv) {
   int threads = 1;
   double warmup = 20, measure = 30;
   std::vector<double> density = {3.5};
+  std::vector<double> people = {0};
   std::string scenario, trajectories, curve, out_png;
   Chart chart;
   std::vector<std::string> series;
@@ -213,6 +219,11 @@ int main(int argc, char** argv) {
     else if (a == "--warmup") warmup = parse_list(value()).at(0);
     else if (a == "--measure") measure = parse_list(value()).at(0);
     else if (a == "--density") density = parse_list(value());
+    else if (a == "--people") {
+      people = parse_list(value(), true);
+      for (double n : people)
+        if (n < 0) usage("--people: " + format_number(n) + " is negative (0: the 6 m room as it is)");
+    }
     else if (a == "--scenario") scenario = value();
     else if (a == "--trajectories") trajectories = value();
     else if (a == "--curve") curve = value();
@@ -233,7 +244,7 @@ int main(int argc, char** argv) {
     }
     const Model model = model_path.empty() || model_path == "default" ? Model::default_model() : Model::load(model_path);
     if (what == "fd") return run_fd(model, densities, threads, warmup, measure);
-    if (what == "bottleneck") return run_bottleneck(model, widths, threads, density);
+    if (what == "bottleneck") return run_bottleneck(model, widths, threads, density, people);
     if (what == "replay") return run_replay(model, scenario, trajectories, line, threads, curve);
     if (what == "measure") return run_measure(trajectories, line);
     usage("unknown check '" + what + "' (fd, bottleneck, replay, measure or chart)");

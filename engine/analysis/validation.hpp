@@ -30,7 +30,9 @@ struct BottleneckResult {
   double t20 = 0, t80 = 0;  // s
   int peak_per_m2 = 0;
 };
-BottleneckResult bottleneck_flow(const Model& m, double width, double density, int threads = 1);
+// people > 0: the room is made deeper than 6 m where needed to hold that many at the density
+// (the crowd of the experiment measured; a shallow crowd drains before the flow settles).
+BottleneckResult bottleneck_flow(const Model& m, double width, double density, int threads = 1, double people = 0);
 
 // Most people in any 1 m x 1 m box whose corner lies on a 0.25 m lattice.
 int peak_box_count(const World& w);

@@ -246,13 +246,14 @@ ModelGradient WindowGradient::run(Simulation& sim, int steps, const StateLossGra
       const StepInputs* in;
       const Geometry* geo;
       double clearance;
-    } ctx{&in, &sc.geo, P.wall_clearance};
+    } ctx{&in, &sc.geo, std::max(P.wall_clearance, P.shoulder_clearance)};
     auto hook = [](void* c, size_t, const Vec2& xa, const Vec2& va, Vec2& xbar, Vec2& vbar) {
       const HookCtx& h = *static_cast<const HookCtx*>(c);
       if (h.geo->sdf(xa) >= h.clearance + 1e-6) return;
+      const double clearance = projection_clearance(h.in->model.params, *h.geo, xa);
       auto proj = [&](const Eigen::Vector4d& s4) {
         Vec2 x(s4[0], s4[1]), v(s4[2], s4[3]);
-        project_point(*h.in, x, v);
+        project_point(*h.in, x, v, clearance);
         return Eigen::Vector4d(x.x(), x.y(), v.x(), v.y());
       };
       Eigen::Matrix4d Jm = local_jacobian(proj, Eigen::Vector4d(xa.x(), xa.y(), va.x(), va.y()));

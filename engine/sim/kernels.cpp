@@ -176,6 +176,16 @@ Headway headway_point(const NeighbourGrid& nb, const World& w, size_t p, const V
     const double along = r.dot(e), side = r.x() * e.y() - r.y() * e.x();
     const double bodies = w.radius[p] + w.radius[q];
     if (along <= 0 || std::abs(side) >= width * bodies) return;
+    // Converging walkers (two people funnelling into a door) each have the other ahead in their
+    // lane; counting both would stop both. The one further ahead in the other's lane goes first
+    // (ties: the lower id) and does not count the other.
+    if (w.free_speed[q] > 0) {
+      const Vec2 eq = w.heading[q];
+      const double along_q = -r.dot(eq), side_q = r.y() * eq.x() - r.x() * eq.y();
+      if (along_q > 0 && std::abs(side_q) < width * bodies &&
+          (along_q > along || (along_q == along && w.id[p] < w.id[q])))
+        return;
+    }
     const double gap = along - bodies;
     if (gap < h.gap) {
       h.gap = gap;
@@ -399,11 +409,54 @@ void kernel_g2p(const StepInputs& in, const Grid& g, World& w, ThreadPool& pool)
 }
 
 // ---------------------------------------------------------------------------------------------
-// Projection out of solids: centres are kept wall_clearance away from every solid, and the
+// Projection out of solids: centres are kept a clearance away from every solid, and the
 // velocity component into the solid is removed.
 
-void project_point(const StepInputs& in, Vec2& x, Vec2& v) {
-  const double clearance = in.model.params.wall_clearance;
+namespace {
+// Half the width of the opening a person at x stands in, capped at h_max: half the distance from
+// the nearest solid (s behind, against n) to the first solid that a ray from x meets within 100
+// degrees of n (sphere-traced; a door's far post, a corridor's far wall; up to 2 h_max - s away).
+double opening_half_width(const Geometry& geo, const Vec2& x, const Vec2& n, double s, double h_max) {
+  static const double kDegrees[] = {0, 25, -25, 50, -50, 75, -75, 100, -100};
+  double hit = 2 * h_max - s;
+  for (double deg : kDegrees) {
+    const double a = deg * (3.14159265358979323846 / 180), c = std::cos(a), sn = std::sin(a);
+    const Vec2 d(c * n.x() - sn * n.y(), sn * n.x() + c * n.y());
+    double t = 0;
+    for (int k = 0; k < 24 && t < hit; ++k) {
+      const double st = geo.sdf(x + t * d);
+      if (st < 2e-3) {
+        hit = t;
+        break;
+      }
+      t += st;
+    }
+  }
+  return std::min(h_max, 0.5 * (s + hit));
+}
+}  // namespace
+
+double projection_clearance(const MaterialParams& P, const Geometry& geo, const Vec2& x) {
+  const double c_min = P.wall_clearance, c_sh = P.shoulder_clearance;
+  if (!(c_sh > c_min)) return c_min;
+  const double s = geo.sdf(x);
+  if (s >= c_sh) return c_sh;
+  // In an opening of half-width h the clearance is h - r (r the model's body_radius) between
+  // wall_clearance and shoulder_clearance: the lane left to the centres, 2 (h - clearance), is
+  // one body wide until the shoulders have their full clearance, and people squeeze towards the
+  // walls only in openings narrower than 2 (wall_clearance + r) (single file). On the medial axis
+  // (equally near two solids, as on a door's centre line) the distance's gradient is shorter
+  // than 1 and s is the half-width itself.
+  const double e = 1e-5;
+  const Vec2 g((geo.sdf(x + Vec2(e, 0)) - geo.sdf(x - Vec2(e, 0))) / (2 * e),
+               (geo.sdf(x + Vec2(0, e)) - geo.sdf(x - Vec2(0, e))) / (2 * e));
+  const double gn = g.norm();
+  if (!(gn > 1e-12)) return c_min;
+  const double h = gn < 0.95 ? s : opening_half_width(geo, x, g / gn, s, c_sh + P.body_radius);
+  return std::clamp(h - P.body_radius, c_min, c_sh);
+}
+
+void project_point(const StepInputs& in, Vec2& x, Vec2& v, double clearance) {
   const double friction = in.model.params.wall_friction;
   for (int iter = 0; iter < 4; ++iter) {
     double s = in.geo.sdf(x);
@@ -417,6 +470,12 @@ void project_point(const StepInputs& in, Vec2& x, Vec2& v) {
       v *= (1 - friction);
     }
   }
+}
+
+void project_point(const StepInputs& in, Vec2& x, Vec2& v) {
+  const MaterialParams& P = in.model.params;
+  if (in.geo.sdf(x) >= std::max(P.wall_clearance, P.shoulder_clearance)) return;
+  project_point(in, x, v, projection_clearance(P, in.geo, x));
 }
 
 double interaction_margin(const Model& m, double comfort) {

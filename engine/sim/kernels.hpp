@@ -127,8 +127,15 @@ double interaction_margin(const Model& m, double comfort);
 // Writes pair_force, pair_virial (sum of f_pq . (x_p - x_q) over agents) and the reported
 // pressure (virial / (2 V), V = 1 / rest_density, as for the crowd material).
 void kernel_social_force(const StepInputs& in, const NeighbourGrid& nb, World& w, ThreadPool& pool);
-// One particle's projection out of solids; kernel_project applies it to every particle.
+// The clearance that the projection keeps a centre at x from the solids: wall_clearance, or with
+// shoulder_clearance above it, between the two by the width of the opening at x
+// (docs/model-format.md, step 7).
+double projection_clearance(const MaterialParams& P, const Geometry& geo, const Vec2& x);
+// One particle's projection out of solids, with the clearance at its position; kernel_project
+// applies it to every particle. The second form keeps a given clearance (the adjoint holds the
+// clearance fixed: it changes with position only across openings, not along walls).
 void project_point(const StepInputs& in, Vec2& x, Vec2& v);
+void project_point(const StepInputs& in, Vec2& x, Vec2& v, double clearance);
 void kernel_drive(const StepInputs& in, World& w, ThreadPool& pool);
 void kernel_traction(const StepInputs& in, const NeighbourGrid& nb, World& w, ThreadPool& pool);
 // Also writes each particle's reported pressure (it has the stress at hand).

@@ -25,6 +25,7 @@ const std::vector<ParamInfo>& param_table() {
       {"max_speed", &MaterialParams::max_speed, 0.1, 20, "m/s", kFixed, false},
       {"contact_epsilon", &MaterialParams::contact_epsilon, 1e-4, 0.1, "m", kFixed, false},
       {"wall_clearance", &MaterialParams::wall_clearance, 0, 0.5, "m", kFixed, true},
+      {"shoulder_clearance", &MaterialParams::shoulder_clearance, 0, 0.5, "m", kFixed, false},
       {"alignment_time", &MaterialParams::alignment_time, 1e-3, 1e3, "s", kContinuum, false},
       {"time_gap", &MaterialParams::time_gap, 0, 5, "s", kContinuum, false},
       // A hard lane edge: no gradient, fixed in training.

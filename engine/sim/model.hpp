@@ -25,6 +25,10 @@ struct MaterialParams {
   double max_speed = 4;          // m/s: safety limit on particle speed
   double contact_epsilon = 0.01; // m: smallest gap used in phi(d) = -log((d - 2 r_b)/c)
   double wall_clearance = 0.1;   // m: particle centres are kept at least this far from solids
+  // m: where the opening allows, centres keep this far from solids instead (shoulders off the
+  // wall); in openings narrower than that people squeeze down to wall_clearance. 0 (or below
+  // wall_clearance): off.
+  double shoulder_clearance = 0;
   double alignment_time = 0.5;   // s: particle velocities relax towards the local grid flow (PIC share dt/this)
   double time_gap = 0.8;         // s: T of the headway speed adaptation (0: off; model version 1: 0); speed <= gap ahead / T
   double headway_width = 0.5;    // lane half-width of the headway, as a fraction of r_p + r_q
