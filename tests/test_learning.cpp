@@ -166,6 +166,10 @@ TEST_CASE("recovery: material parameters are recovered from trajectories the eng
   truth.set("v0_scale", 1.1);
   truth.set("comfort_distance", 0.35);
   truth.set("alignment_time", 0.3);
+  // The scene tells E from gamma by the crowd compressed against the wall. Held a body radius off
+  // it (shoulder_clearance 0.2), the fit stalls with E 20% and gamma 16% off (their product
+  // right); with the bodies pressed to wall_clearance it recovers both.
+  truth.set("shoulder_clearance", 0);
   std::vector<double> theta = truth.traction.parameters();
   for (size_t k = 0; k < theta.size(); ++k) theta[k] += 0.15 * std::sin(1.0 + static_cast<double>(k));
   truth.traction.set_parameters(theta);

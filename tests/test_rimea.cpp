@@ -134,13 +134,12 @@ AreaSample sample_area(const World& w, const Vec2& lo, const Vec2& hi) {
 }
 }  // namespace
 
-TEST_CASE("RiMEA 12: a crowd jams at the entrance of a corridor, and the exit after it passes less (defect recorded)", "[rimea]") {
+TEST_CASE("RiMEA 12: a crowd jams at the entrance of a corridor and not at the exit after it (v1: defect recorded)", "[rimea]") {
   // RiMEA (and JuPedSim's check): the jam forms at the corridor's entrance and the exit after it
-  // passes what the corridor lets through (within 5%). Both models jam at the corridor; both pass
-  // ~15% less through the exit than through the corridor and queue there briefly: the stream
-  // leaving the corridor converges on the exit's centre line, its staggered lanes merge behind
-  // one another and the headway (or the pair traction) holds them. Recorded as a defect: if the
-  // exit keeps up, check J2 >= 0.95 J1 and no jam at the exit instead.
+  // passes what the corridor lets through (within 5%). Both models jam at the corridor. The
+  // default passes the exit as fast as the corridor. The version 1 default passes ~15% less
+  // through the exit and queues there briefly (its stream converges on the exit's centre line
+  // and its pair traction holds the merging lanes): recorded as a defect.
   const ScenarioDef s = ScenarioDef::load(test::scenario_path("rimea_12"));
   for (const auto& [name, m] : models()) {
     Simulation sim(s, m, 2);
@@ -176,7 +175,12 @@ TEST_CASE("RiMEA 12: a crowd jams at the entrance of a corridor, and the exit af
                 "at most %d people in front of it\n", name, J1, jammed_corridor, J2, jammed_exit, peak_exit);
     CHECK(jammed_corridor >= 10);
     CHECK(jammed_exit < jammed_corridor);  // the main jam is at the corridor
-    CHECK(J2 < 0.95 * J1);  // defect recorded (see above)
+    if (std::string(name) == "default") {
+      CHECK(J2 >= 0.95 * J1);
+      CHECK(jammed_exit <= 2);
+    } else {
+      CHECK(J2 < 0.95 * J1);  // v1: defect recorded (see above); if this fails, check as for the default
+    }
   }
 }
 

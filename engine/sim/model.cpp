@@ -61,6 +61,8 @@ Model Model::default_of(const std::string& kind) {
     m.params.tension_scale = 1;
   } else if (kind == "social_force") {
     m.material = MaterialKind::SocialForce;
+    // Its wall force keeps bodies off walls (at r); the projection is only a backstop.
+    m.params.shoulder_clearance = 0;
   } else if (kind == "elastic") {
     m.material = MaterialKind::Elastic;
   } else {
