@@ -16,10 +16,13 @@ double Geometry::sdf(const Vec2& p) const {
   return d;
 }
 
-Vec2 Geometry::normal(const Vec2& p) const {
+Vec2 Geometry::sdf_gradient(const Vec2& p) const {
   const double h = 1e-5;
-  Vec2 g((sdf(p + Vec2(h, 0)) - sdf(p - Vec2(h, 0))) / (2 * h),
-         (sdf(p + Vec2(0, h)) - sdf(p - Vec2(0, h))) / (2 * h));
+  return Vec2((sdf(p + Vec2(h, 0)) - sdf(p - Vec2(h, 0))) / (2 * h), (sdf(p + Vec2(0, h)) - sdf(p - Vec2(0, h))) / (2 * h));
+}
+
+Vec2 Geometry::normal(const Vec2& p) const {
+  const Vec2 g = sdf_gradient(p);
   double n = g.norm();
   return n > 1e-12 ? Vec2(g / n) : Vec2(0, 0);
 }

@@ -22,6 +22,9 @@ class Geometry {
 
   // Signed distance to the nearest solid, the domain border included: negative inside a solid.
   double sdf(const Vec2& p) const;
+  // Central-difference gradient of sdf (length 1 off the medial axis, shorter on it, where two
+  // solids are equally near).
+  Vec2 sdf_gradient(const Vec2& p) const;
   // Unit outward normal of the solid nearest to p (gradient of sdf).
   Vec2 normal(const Vec2& p) const;
   // Index of the exit containing p, or -1.

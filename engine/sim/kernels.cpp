@@ -417,10 +417,15 @@ namespace {
 // the nearest solid (s behind, against n) to the first solid that a ray from x meets within 100
 // degrees of n (sphere-traced; a door's far post, a corridor's far wall; up to 2 h_max - s away).
 double opening_half_width(const Geometry& geo, const Vec2& x, const Vec2& n, double s, double h_max) {
-  static const double kDegrees[] = {0, 25, -25, 50, -50, 75, -75, 100, -100};
+  // (cos, sin) of 0, +-25, +-50, +-75 and +-100 degrees, computed once.
+  static const std::vector<Vec2> kRays = [] {
+    std::vector<Vec2> r;
+    for (double deg : {0, 25, -25, 50, -50, 75, -75, 100, -100}) r.emplace_back(std::cos(deg * (M_PI / 180)), std::sin(deg * (M_PI / 180)));
+    return r;
+  }();
   double hit = 2 * h_max - s;
-  for (double deg : kDegrees) {
-    const double a = deg * (3.14159265358979323846 / 180), c = std::cos(a), sn = std::sin(a);
+  for (const Vec2& cs : kRays) {
+    const double c = cs.x(), sn = cs.y();
     const Vec2 d(c * n.x() - sn * n.y(), sn * n.x() + c * n.y());
     double t = 0;
     for (int k = 0; k < 24 && t < hit; ++k) {
@@ -434,12 +439,11 @@ double opening_half_width(const Geometry& geo, const Vec2& x, const Vec2& n, dou
   }
   return std::min(h_max, 0.5 * (s + hit));
 }
-}  // namespace
 
-double projection_clearance(const MaterialParams& P, const Geometry& geo, const Vec2& x) {
+// projection_clearance with s = geo.sdf(x) already at hand.
+double clearance_at(const MaterialParams& P, const Geometry& geo, const Vec2& x, double s) {
   const double c_min = P.wall_clearance, c_sh = P.shoulder_clearance;
   if (!(c_sh > c_min)) return c_min;
-  const double s = geo.sdf(x);
   if (s >= c_sh) return c_sh;
   // In an opening of half-width h the clearance is h - r (r the model's body_radius) between
   // wall_clearance and shoulder_clearance: the lane left to the centres, 2 (h - clearance), is
@@ -447,13 +451,16 @@ double projection_clearance(const MaterialParams& P, const Geometry& geo, const 
   // walls only in openings narrower than 2 (wall_clearance + r) (single file). On the medial axis
   // (equally near two solids, as on a door's centre line) the distance's gradient is shorter
   // than 1 and s is the half-width itself.
-  const double e = 1e-5;
-  const Vec2 g((geo.sdf(x + Vec2(e, 0)) - geo.sdf(x - Vec2(e, 0))) / (2 * e),
-               (geo.sdf(x + Vec2(0, e)) - geo.sdf(x - Vec2(0, e))) / (2 * e));
+  const Vec2 g = geo.sdf_gradient(x);
   const double gn = g.norm();
   if (!(gn > 1e-12)) return c_min;
   const double h = gn < 0.95 ? s : opening_half_width(geo, x, g / gn, s, c_sh + P.body_radius);
   return std::clamp(h - P.body_radius, c_min, c_sh);
+}
+}  // namespace
+
+double projection_clearance(const MaterialParams& P, const Geometry& geo, const Vec2& x) {
+  return clearance_at(P, geo, x, geo.sdf(x));
 }
 
 void project_point(const StepInputs& in, Vec2& x, Vec2& v, double clearance) {
@@ -474,8 +481,9 @@ void project_point(const StepInputs& in, Vec2& x, Vec2& v, double clearance) {
 
 void project_point(const StepInputs& in, Vec2& x, Vec2& v) {
   const MaterialParams& P = in.model.params;
-  if (in.geo.sdf(x) >= std::max(P.wall_clearance, P.shoulder_clearance)) return;
-  project_point(in, x, v, projection_clearance(P, in.geo, x));
+  const double s = in.geo.sdf(x);
+  if (s >= std::max(P.wall_clearance, P.shoulder_clearance)) return;
+  project_point(in, x, v, clearance_at(P, in.geo, x, s));
 }
 
 double interaction_margin(const Model& m, double comfort) {
