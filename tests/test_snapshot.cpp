@@ -160,6 +160,6 @@ TEST_CASE("snapshot: truncated, corrupted, foreign and newer snapshots give clea
     CHECK_THROWS_WITH(restore_snapshot(bad, "s.snap", 1), Catch::Contains("corrupted snapshot: the checksum does not match"));
   }
   std::string newer = snap;
-  newer[8] = 2;  // version
-  CHECK_THROWS_WITH(restore_snapshot(newer, "s.snap", 1), Catch::Contains("snapshot format version 2; this engine reads version 1"));
+  newer[8] = 3;  // version
+  CHECK_THROWS_WITH(restore_snapshot(newer, "s.snap", 1), Catch::Contains("snapshot format version 3; this engine reads versions 1 to 2"));
 }

@@ -2,7 +2,11 @@
 
 #include <cmath>
 #include <limits>
-#include <queue>
+#include <algorithm>
+#include <functional>
+#include <string>
+
+#include "engine/core/error.hpp"
 
 namespace crowdmpm {
 
@@ -13,60 +17,79 @@ NavField::NavField(const Geometry& geo, const std::vector<const Shape*>& targets
   nx_ = std::max(1, static_cast<int>(std::ceil((geo.hi.x() - geo.lo.x()) / h_)));
   ny_ = std::max(1, static_cast<int>(std::ceil((geo.hi.y() - geo.lo.y()) / h_)));
   const size_t n = static_cast<size_t>(nx_) * ny_;
-  T_.assign(n, kInf);
-  dir_.assign(n, Vec2::Zero());
-  std::vector<char> free(n, 0), done(n, 0);
-  using Item = std::pair<double, int>;
-  std::priority_queue<Item, std::vector<Item>, std::greater<Item>> heap;
-  int seeds = 0;
+  free_.assign(n, 0);
   for (int j = 0; j < ny_; ++j)
     for (int i = 0; i < nx_; ++i) {
-      Vec2 c = lo_ + h_ * Vec2(i + 0.5, j + 0.5);
-      int k = index(i, j);
-      free[k] = geo.sdf(c) >= clearance;
+      const Vec2 c = cell_centre(i, j);
+      const int k = index(i, j);
+      free_[k] = geo.sdf(c) >= clearance;
       bool in_target = false;
       for (const Shape* t : targets) in_target = in_target || t->contains(c);
-      if (free[k] && in_target) {
-        T_[k] = 0;
-        heap.push({0.0, k});
-        ++seeds;
-      }
+      if (free_[k] && in_target) seeds_.push_back(k);
     }
-  if (seeds == 0) {
+  if (seeds_.empty()) {
     // Targets thinner than a cell: seed the walkable cells within two cells of them.
     for (int k = 0; k < static_cast<int>(n); ++k) {
-      if (!free[k]) continue;
-      Vec2 q = lo_ + h_ * Vec2(k % nx_ + 0.5, k / nx_ + 0.5);
+      if (!free_[k]) continue;
+      const Vec2 q = cell_centre(k % nx_, k / nx_);
       for (const Shape* t : targets)
         if (t->sdf(q) < 2 * h_) {
-          T_[k] = 0;
-          heap.push({0.0, k});
+          seeds_.push_back(k);
           break;
         }
     }
   }
-  seeded_ = !heap.empty();
+  seeded_ = !seeds_.empty();
+  // The heap holds the marching front (a few times the cells along it, far below n).
+  heap_.reserve(n / 4 + seeds_.size() + 64);
+  march({});
+}
+
+void NavField::set_cost(const std::vector<double>& cost) {
+  if (!cost.empty() && cost.size() != free_.size())
+    throw Error("navigation cost: " + std::to_string(cost.size()) + " values for " + std::to_string(free_.size()) + " cells");
+  march(cost);
+}
+
+void NavField::march(const std::vector<double>& cost) {
+  const size_t n = free_.size();
+  T_.assign(n, kInf);
+  dir_.assign(n, Vec2::Zero());
+  done_.assign(n, 0);
+  // A binary min-heap on heap_ (std::push_heap with greater: the smallest T on top).
+  heap_.clear();
+  const auto later = std::greater<std::pair<double, int>>();
+  auto push = [&](double t, int k) {
+    heap_.emplace_back(t, k);
+    std::push_heap(heap_.begin(), heap_.end(), later);
+  };
+  for (int k : seeds_) {
+    T_[k] = 0;
+    push(0.0, k);
+  }
   auto value = [&](int i, int j) { return (i < 0 || j < 0 || i >= nx_ || j >= ny_) ? kInf : T_[index(i, j)]; };
-  while (!heap.empty()) {
-    auto [t, k] = heap.top();
-    heap.pop();
-    if (done[k]) continue;
-    done[k] = 1;
+  while (!heap_.empty()) {
+    std::pop_heap(heap_.begin(), heap_.end(), later);
+    const int k = heap_.back().second;
+    heap_.pop_back();
+    if (done_[k]) continue;
+    done_[k] = 1;
     int i = k % nx_, j = k / nx_;
     const int di[4] = {1, -1, 0, 0}, dj[4] = {0, 0, 1, -1};
     for (int d = 0; d < 4; ++d) {
       int a = i + di[d], b = j + dj[d];
       if (a < 0 || b < 0 || a >= nx_ || b >= ny_) continue;
       int q = index(a, b);
-      if (!free[q] || done[q]) continue;
+      if (!free_[q] || done_[q]) continue;
+      const double hc = cost.empty() ? h_ : h_ * cost[q];  // |grad T| = c: a step of h costs h c
       double tx = std::min(value(a - 1, b), value(a + 1, b));
       double ty = std::min(value(a, b - 1), value(a, b + 1));
       double lo = std::min(tx, ty), hi = std::max(tx, ty);
-      double tn = (hi - lo >= h_ || hi == kInf) ? lo + h_
-                                                : 0.5 * (lo + hi + std::sqrt(2 * h_ * h_ - (hi - lo) * (hi - lo)));
+      double tn = (hi - lo >= hc || hi == kInf) ? lo + hc
+                                                 : 0.5 * (lo + hi + std::sqrt(2 * hc * hc - (hi - lo) * (hi - lo)));
       if (tn < T_[q]) {
         T_[q] = tn;
-        heap.push({tn, q});
+        push(tn, q);
       }
     }
   }

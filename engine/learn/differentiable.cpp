@@ -152,6 +152,14 @@ ModelGradient WindowGradient::run(Simulation& sim, int steps, const StateLossGra
     throw Error(std::string("gradients through the simulator cover the crowd and fluid materials, not ") + material_name(model.material));
   const size_t n = sim.world().size();
   const std::vector<EntityId> ids = sim.world().id;
+  // Routes under congestion stay those of the window's start (no adjoint of the route choice;
+  // the steps run again from checkpoints must see the same routes).
+  struct HeldRoutes {
+    Simulation& s;
+    bool was;
+    ~HeldRoutes() { s.hold_routes(was); }
+  } held{sim, sim.routes_held()};
+  sim.hold_routes(true);
   // Segments of K steps: without checkpointing one segment whose states the forward pass keeps;
   // with it, only each segment's first state is kept and the backward pass runs the segment
   // forward again (one more forward pass in all) to get its states back.

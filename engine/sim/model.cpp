@@ -30,6 +30,9 @@ const std::vector<ParamInfo>& param_table() {
       {"time_gap", &MaterialParams::time_gap, 0, 5, "s", kContinuum, false},
       // A hard lane edge: no gradient, fixed in training.
       {"headway_width", &MaterialParams::headway_width, 0.05, 1, "1", kFixed, false},
+      // Routes are recomputed from the crowd's density once a second; held fixed through a
+      // gradient window (no adjoint of the route choice).
+      {"route_congestion", &MaterialParams::route_congestion, 0, 4, "1", kFixed, false},
       {"sf_A", &MaterialParams::sf_A, 0, 1e4, "m/s^2", kSocialForce, false},
       {"sf_B", &MaterialParams::sf_B, 0.01, 1, "m", kSocialForce, false},
       {"sf_k", &MaterialParams::sf_k, 0, 1e5, "1/s^2", kSocialForce, false},
@@ -63,6 +66,7 @@ Model Model::default_of(const std::string& kind) {
     m.material = MaterialKind::SocialForce;
     // Its wall force keeps bodies off walls (at r); the projection is only a backstop.
     m.params.shoulder_clearance = 0;
+    m.params.route_congestion = 0;  // the classic model: shortest paths
   } else if (kind == "elastic") {
     m.material = MaterialKind::Elastic;
   } else {

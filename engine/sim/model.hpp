@@ -32,6 +32,10 @@ struct MaterialParams {
   double alignment_time = 0.5;   // s: particle velocities relax towards the local grid flow (PIC share dt/this)
   double time_gap = 0.8;         // s: T of the headway speed adaptation (0: off; model version 1: 0); speed <= gap ahead / T
   double headway_width = 0.5;    // lane half-width of the headway, as a fraction of r_p + r_q
+  // Route choice under congestion (Hughes 2002): goal routes minimise the travel cost
+  // 1 + w (u_ref / v(rho) - 1) per metre, v(rho) the headway's speed at the local density; 0: the
+  // shortest path (model version 1 and social_force's default).
+  double route_congestion = 0;
   // social_force model (Helbing, Farkas & Vicsek 2000), per unit mass (their values / 80 kg):
   double sf_A = 25;              // m/s^2: strength of the exponential repulsion A exp((r_pq - d)/B)
   double sf_B = 0.08;            // m: its range

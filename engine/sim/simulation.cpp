@@ -128,6 +128,7 @@ int Simulation::nav_for(const std::string& target) {
     throw Error("target \"" + target + "\" has no walkable cell in or next to it (it lies inside solids or outside the domain)");
   navs_.push_back(std::move(field));
   nav_targets_.push_back(target);
+  nav_goal_.push_back(0);
   return static_cast<int>(navs_.size() - 1);
 }
 
@@ -145,6 +146,10 @@ Behaviour Simulation::goal_behaviour(const std::string& target) {
 void Simulation::resolve(Behaviour& b) {
   if (b.kind == Behaviour::Kind::Goal) {
     b.nav = nav_for(b.target);
+    if (!nav_goal_[static_cast<size_t>(b.nav)]) {
+      nav_goal_[static_cast<size_t>(b.nav)] = 1;
+      if (!route_pace_.empty()) navs_[static_cast<size_t>(b.nav)].set_cost(route_costs());
+    }
     const NamedShape* t = b.target == "nearest_exit" ? nullptr : scenario_.geo.find_target(b.target);
     bool is_exit = false;
     for (const auto& e : scenario_.geo.exits) is_exit = is_exit || &e == t;
@@ -416,9 +421,130 @@ void Simulation::prepare_derived() {
 const char* const StepProfile::kNames[StepProfile::kParts] = {"drive", "neighbours", "traction", "p2g", "grid_update",
                                                                "g2p", "project", "exits", "sources"};
 
+// Route choice under congestion (after Hughes 2002: the route minimises the travel time at the
+// speeds the crowd walks): a goal's route minimises the integral of c ds with the cost per metre
+// c = 1 + w (1 / max(s, 1/20) - 1), w = route_congestion, s the crowd's pace there: how much of
+// their free speed the people around walk, s = (sum K |v_p| / u_p + rho_b) / (sum K + rho_b), K a
+// Gaussian of kRouteSmoothing over each person's quadratic B-spline deposit on the grid's free
+// nodes (per m^2), rho_b = kRouteBackground persons/m^2 of free walkers (so that a lone slow
+// person is not a jam). Where the crowd walks at its free speed the routes are the shortest
+// paths; a queue (s small) costs up to 1 + 19 w times its length and the routes bend round it.
+void Simulation::update_routes() {
+  const MaterialParams& P = model_.params;
+  if (!(P.route_congestion > 0)) {
+    if (!route_pace_.empty()) {
+      route_pace_.clear();
+      apply_route_pace();
+    }
+    return;
+  }
+  if (std::find(nav_goal_.begin(), nav_goal_.end(), 1) == nav_goal_.end()) return;  // no goal routes to bend
+  const long every = std::max(1L, std::lround(kRouteInterval / scenario_.dt));
+  if (!route_pace_.empty() && (routes_held_ || steps_ % every != 0)) return;
+  const Grid& g = grid_;
+  // Deposits per node: persons (each renormalised over the free nodes of their stencil, so walls
+  // do not thin the crowd beside them) and their paces |v| / u (1 for people without a drive).
+  RouteScratch& r = route_scratch_;
+  std::vector<double>&mass = r.mass, &pace = r.pace, &weight = r.weight, &t0 = r.t0, &t1 = r.t1, &t2 = r.t2;
+  mass.assign(g.nodes(), 0.0);
+  pace.assign(g.nodes(), 0.0);
+  weight.resize(g.nodes());
+  t0.resize(g.nodes());
+  t1.resize(g.nodes());
+  t2.resize(g.nodes());
+  for (size_t p = 0; p < world_.size(); ++p) {
+    const Stencil st = make_stencil(g.origin, g.dx, g.nx, g.ny, world_.x[p]);
+    double free_weight = 0;
+    for_each_stencil_node(st, g.nx, g.dx, [&](const StencilNode& n) {
+      if (!g.solid[n.k]) free_weight += n.w;
+    });
+    if (!(free_weight > 0)) continue;
+    const double u = world_.free_speed[p];
+    const double s = u > 0 ? std::min(1.0, world_.v[p].norm() / u) : 1.0;
+    for_each_stencil_node(st, g.nx, g.dx, [&](const StencilNode& n) {
+      if (g.solid[n.k]) return;
+      mass[n.k] += n.w / free_weight;
+      pace[n.k] += s * n.w / free_weight;
+    });
+  }
+  for (size_t k = 0; k < g.nodes(); ++k) weight[k] = g.solid[k] ? 0.0 : 1.0;
+  // Gaussian smoothing, separable, renormalised over the free nodes (the sums become per m^2).
+  const int reach = std::max(1, static_cast<int>(std::ceil(3 * kRouteSmoothing / g.dx)));
+  std::vector<double>& kernel = r.kernel;
+  kernel.resize(static_cast<size_t>(2 * reach + 1));
+  for (int k = -reach; k <= reach; ++k) kernel[static_cast<size_t>(k + reach)] = std::exp(-0.5 * std::pow(k * g.dx / kRouteSmoothing, 2));
+  for (bool along_x : {true, false}) {
+    for (int j = 0; j < g.ny; ++j)
+      for (int i = 0; i < g.nx; ++i) {
+        double m = 0, q = 0, wsum = 0;
+        for (int k = -reach; k <= reach; ++k) {
+          const int a = along_x ? i + k : i, b = along_x ? j : j + k;
+          if (a < 0 || b < 0 || a >= g.nx || b >= g.ny) continue;
+          const double c = kernel[static_cast<size_t>(k + reach)];
+          const size_t n = static_cast<size_t>(g.node(a, b));
+          m += c * mass[n];
+          q += c * pace[n];
+          wsum += c * weight[n];
+        }
+        const size_t n = static_cast<size_t>(g.node(i, j));
+        t0[n] = m;
+        t1[n] = q;
+        t2[n] = wsum;
+      }
+    mass.swap(t0);
+    pace.swap(t1);
+    weight.swap(t2);
+  }
+  const double area = g.dx * g.dx;
+  for (size_t k = 0; k < g.nodes(); ++k) {
+    const bool ok = !g.solid[k] && weight[k] > 1e-12;
+    const double rho = ok ? mass[k] / (weight[k] * area) : 0.0, flux = ok ? pace[k] / (weight[k] * area) : 0.0;
+    pace[k] = (flux + kRouteBackground) / (rho + kRouteBackground);
+  }
+  route_pace_.assign(pace.begin(), pace.end());  // a copy: both buffers keep their capacity
+  apply_route_pace();
+}
+
+const std::vector<double>& Simulation::route_costs() {
+  const double w = model_.params.route_congestion;
+  const Grid& g = grid_;
+  const NavField& f = navs_.front();
+  std::vector<double>& cost = route_scratch_.cost;
+  cost.assign(static_cast<size_t>(f.nx()) * f.ny(), 1.0);
+  for (int j = 0; j < f.ny(); ++j)
+    for (int i = 0; i < f.nx(); ++i) {
+      // Bilinear over the four surrounding grid nodes, renormalised over the free ones.
+      const Vec2 c = f.cell_centre(i, j);
+      const double gx = (c.x() - g.origin.x()) / g.dx, gy = (c.y() - g.origin.y()) / g.dx;
+      const int i0 = std::clamp(static_cast<int>(std::floor(gx)), 0, g.nx - 2);
+      const int j0 = std::clamp(static_cast<int>(std::floor(gy)), 0, g.ny - 2);
+      const double tx = std::clamp(gx - i0, 0.0, 1.0), ty = std::clamp(gy - j0, 0.0, 1.0);
+      double s = 0, wsum = 0;
+      for (int b = 0; b < 2; ++b)
+        for (int a = 0; a < 2; ++a) {
+          const int k = g.node(i0 + a, j0 + b);
+          if (g.solid[static_cast<size_t>(k)]) continue;
+          const double wt = (a ? tx : 1 - tx) * (b ? ty : 1 - ty);
+          s += wt * route_pace_[static_cast<size_t>(k)];
+          wsum += wt;
+        }
+      if (wsum > 1e-12) cost[static_cast<size_t>(j) * f.nx() + i] = 1 + w * (1 / std::max(s / wsum, 0.05) - 1);
+    }
+  return cost;
+}
+
+void Simulation::apply_route_pace() {
+  if (navs_.empty()) return;
+  static const std::vector<double> shortest;
+  const std::vector<double>& cost = route_pace_.empty() ? shortest : route_costs();
+  for (size_t i = 0; i < navs_.size(); ++i)
+    if (nav_goal_[i]) navs_[i].set_cost(cost);
+}
+
 void Simulation::step() {
   if (failed_)
     throw UnstableError("the simulation became unstable at t = " + format_number(time()) + " s and cannot be stepped further");
+  update_routes();
   StepInputs in = step_inputs();
   using clock = std::chrono::steady_clock;
   auto t = profiling_ ? clock::now() : clock::time_point();

@@ -102,6 +102,17 @@ class Simulation {
   int behaviour_for_target(const std::string& target);  // goal behaviour to an exit/goal id
   // Changes the simulated time at which finished() holds (the scenario's time.duration), s > 0.
   void set_duration(double seconds);
+  // Route choice under congestion (MaterialParams::route_congestion): goal routes are recomputed
+  // from the crowd's pace (the share of their free speed people walk, smoothed) at the start of
+  // every step that begins a second (kRouteInterval).
+  // Held, no recomputation happens (a gradient window: the routes of its start stay fixed).
+  void hold_routes(bool held) { routes_held_ = held; }
+  bool routes_held() const { return routes_held_; }
+  // The pace (0..1) per grid node the routes were last computed from; empty: shortest paths.
+  const std::vector<double>& route_pace() const { return route_pace_; }
+  static constexpr double kRouteInterval = 1.0;   // s
+  static constexpr double kRouteSmoothing = 2.0;   // m: standard deviation of the pace's smoothing
+  static constexpr double kRouteBackground = 1.0;  // persons/m^2 of free walkers mixed into the pace
   // A person's free speed for group g: the group's, or drawn from its truncated normal
   // distribution with the simulation's random stream (no draw when it has none).
   double draw_speed(const GroupDef& g);
@@ -123,6 +134,9 @@ class Simulation {
   double neighbour_reach() const;
   AgentDef agent_template(const GroupDef& g, int group_index) const;
   AgentDef with_entry_heading(AgentDef d) const;  // the heading behaviour's direction at entry
+  void update_routes();       // at a step's start: recompute route_pace_ when due, then the routes
+  void apply_route_pace(); // the goal navigation fields' costs from route_pace_
+  const std::vector<double>& route_costs();  // the cost per navigation cell from route_pace_
 
   ScenarioDef scenario_;
   Model model_;
@@ -132,6 +146,12 @@ class Simulation {
   NeighbourGrid neighbours_;
   std::vector<NavField> navs_;
   std::vector<std::string> nav_targets_;
+  std::vector<char> nav_goal_;          // per navigation field: a goal's (route choice bends it)
+  std::vector<double> route_pace_;   // per grid node, 0..1, at the last route update
+  bool routes_held_ = false;
+  struct RouteScratch {  // update_routes' buffers, kept so that a route update allocates nothing
+    std::vector<double> mass, pace, weight, t0, t1, t2, kernel, cost;
+  } route_scratch_;
   std::vector<Behaviour> behaviours_;
   std::vector<int> group_behaviour_;
   std::vector<std::string> added_targets_;  // behaviour_for_target's new behaviours, in order

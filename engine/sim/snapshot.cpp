@@ -78,9 +78,11 @@ struct SnapshotCodec {
     f64s(g.mass);
     vec2s(g.velocity);
     vec2s(g.velocity_old);
+    f64s(s.route_pace_);  // version 2
+    b.u32(s.routes_held_ ? 1 : 0);
   }
 
-  static std::unique_ptr<Simulation> read(BinaryReader& r, int threads) {
+  static std::unique_ptr<Simulation> read(BinaryReader& r, int threads, uint32_t version) {
     const std::string doc_text = r.str("scenario");
     const std::string source = r.str("scenario name");
     const std::string model_text = r.str("model");
@@ -173,6 +175,20 @@ struct SnapshotCodec {
     grid_array(g.mass, "grid mass", [&] { return r.f64("grid mass"); });
     grid_array(g.velocity, "grid velocity", [&] { return r.vec2("grid velocity"); });
     grid_array(g.velocity_old, "grid velocity", [&] { return r.vec2("grid velocity"); });
+    if (version >= 2) {
+      // The pace the routes were last computed from (empty: shortest paths).
+      r.array(s.route_pace_, "route pace", 8, [&] {
+        const double v = r.f64("route pace");
+        if (!(v >= 0 && v <= 1)) r.fail("route pace", "out of range [0, 1]");
+        return v;
+      });
+      if (!s.route_pace_.empty() && s.route_pace_.size() != nodes)
+        r.fail("route pace", "has " + std::to_string(s.route_pace_.size()) + " nodes, the grid " + std::to_string(nodes));
+      const uint32_t held = r.u32("routes held flag");
+      if (held > 1) r.fail("routes held flag", "must be 0 or 1");
+      s.routes_held_ = held == 1;
+      s.apply_route_pace();
+    }
     if (s.batch_start_ > s.world_.size()) r.fail("batch start", "beyond the agents");
     if (reach < s.neighbour_reach() - 1e-12 * (1 + reach)) r.fail("cell list sizes", "the cells are narrower than the agents' reach");
     s.size_neighbour_cells(reach);
@@ -290,8 +306,8 @@ std::unique_ptr<Simulation> restore_snapshot(const std::string& bytes, const std
   BinaryReader head(bytes.data(), bytes.size(), source);
   head.u64("magic");
   const uint32_t version = head.u32("version");
-  if (version != kSnapshotVersion)
-    throw Error(source + ": snapshot format version " + std::to_string(version) + "; this engine reads version " +
+  if (version < 1 || version > kSnapshotVersion)
+    throw Error(source + ": snapshot format version " + std::to_string(version) + "; this engine reads versions 1 to " +
                 std::to_string(kSnapshotVersion));
   if (head.u32("byte order") != kEndianMark) throw Error(source + ": snapshot written with another byte order");
   const uint64_t length = head.u64("payload length");
@@ -305,7 +321,7 @@ std::unique_ptr<Simulation> restore_snapshot(const std::string& bytes, const std
   if (tail.u64("checksum") != fnv1a64(payload, static_cast<size_t>(length)))
     throw Error(source + ": corrupted snapshot: the checksum does not match its contents");
   BinaryReader r(payload, static_cast<size_t>(length), source + " (state)");
-  std::unique_ptr<Simulation> sim = SnapshotCodec::read(r, threads);
+  std::unique_ptr<Simulation> sim = SnapshotCodec::read(r, threads, version);
   if (!r.at_end()) r.fail("end", "unexpected bytes after the state");
   return sim;
 }

@@ -13,7 +13,8 @@
 
 namespace crowdmpm {
 
-constexpr uint32_t kSnapshotVersion = 1;
+// Version 2 adds the route density (route choice under congestion); version 1 still reads.
+constexpr uint32_t kSnapshotVersion = 2;
 // Magic, version, byte-order mark, payload length; the payload follows, then its checksum.
 constexpr size_t kSnapshotHeaderBytes = 8 + 4 + 4 + 8;
 
