@@ -438,9 +438,9 @@ void Simulation::update_routes() {
     }
     return;
   }
-  if (std::find(nav_goal_.begin(), nav_goal_.end(), 1) == nav_goal_.end()) return;  // no goal routes to bend
   const long every = std::max(1L, std::lround(kRouteInterval / scenario_.dt));
-  if (!route_pace_.empty() && (routes_held_ || steps_ % every != 0)) return;
+  if (!route_pace_.empty() && (routes_held_ || steps_ % every != 0)) return;  // most steps end here
+  if (std::find(nav_goal_.begin(), nav_goal_.end(), 1) == nav_goal_.end()) return;  // no goal routes to bend
   const Grid& g = grid_;
   // Deposits per node: persons (each renormalised over the free nodes of their stencil, so walls
   // do not thin the crowd beside them) and their paces |v| / u (1 for people without a drive).
