@@ -187,7 +187,8 @@ CMPM_API cmpm_Status cmpm_World_GetAgentState(cmpm_WorldId world, cmpm_AgentId a
  * world's derived state, such as its neighbour search reach, follows). The parameters that set
  * up a world (docs/model-format.md, column "World": body_radius, comfort_distance, rest_density,
  * mass, wall_clearance) are fixed once it exists: setting them is CMPM_ERROR_INVALID_ARGUMENT,
- * as is a max_speed too large for the time step. */
+ * as is a max_speed too large for the time step. route_congestion changes the routes at the next
+ * step that begins a simulated second (at once when it turns route choice on or off). */
 CMPM_API cmpm_Status cmpm_World_GetParameter(cmpm_WorldId world, const char* name, double* out_value);
 CMPM_API cmpm_Status cmpm_World_SetParameter(cmpm_WorldId world, const char* name, double value);
 /* Replace the traction network from JSON: {"layers": [...]} or {"constant": K} (crowd material). */
