@@ -87,15 +87,16 @@ int main(int argc, char** argv) {
     scenario = std::make_unique<ScenarioDef>(ScenarioDef::parse_text(text));
     owned = std::make_unique<Simulation>(*scenario, Model::default_model(), threads);
     const int east = 1, west = 2;  // behaviours of the two groups (0 is "none")
+    std::vector<AgentDef> defs(static_cast<size_t>(agents));
     for (long k = 0; k < agents; ++k) {
+      AgentDef& d = defs[static_cast<size_t>(k)];
       long r = k / per_row, c = k % per_row;
-      AgentDef d;
       d.position = Vec2((static_cast<double>(c) + 0.5 * static_cast<double>(r & 1)) * a + 0.05, static_cast<double>(r) * row + 0.05);
       d.behaviour = (r & 1) ? west : east;
       d.group = (r & 1) ? 1 : 0;
       d.velocity = Vec2((r & 1) ? -1.0 : 1.0, 0);
-      owned->add_agent(d);
     }
+    owned->add_agents(defs);
   }
   Simulation& sim = *owned;
   sim.run_steps(warmup);

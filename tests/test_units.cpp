@@ -269,21 +269,37 @@ TEST_CASE("agents added one by one before a step get the same reference volumes 
   std::vector<Vec2> spots;  // a square lattice at 1 / 0.45^2 = 4.9 persons/m^2
   for (int j = 0; j < 12; ++j)
     for (int i = 0; i < 12; ++i) spots.emplace_back(3 + 0.45 * i, 3 + 0.45 * j);
-  auto volumes = [&](bool reversed) {
+  auto volumes = [&](bool reversed, bool together = false) {
     Simulation sim(s, Model::default_model(), 1);
+    std::vector<AgentDef> defs;
     for (size_t k = 0; k < spots.size(); ++k) {
       AgentDef a;
       a.position = spots[reversed ? spots.size() - 1 - k : k];
       a.behaviour = sim.behaviour_of_group(0);
-      sim.add_agent(a);
+      if (together) defs.push_back(a);
+      else sim.add_agent(a);
     }
+    if (together) CHECK(sim.add_agents(defs).size() == spots.size());
     std::vector<double> J(spots.size());
     for (size_t p = 0; p < sim.world().size(); ++p)
       for (size_t k = 0; k < spots.size(); ++k)
         if ((sim.world().x[p] - spots[k]).norm() < 1e-12) J[k] = sim.world().J[p];
     return J;
   };
-  const std::vector<double> forward = volumes(false), backward = volumes(true);
-  for (size_t k = 0; k < spots.size(); ++k) CHECK(forward[k] == Approx(backward[k]));
+  const std::vector<double> forward = volumes(false), backward = volumes(true), together = volumes(false, true);
+  for (size_t k = 0; k < spots.size(); ++k) {
+    CHECK(forward[k] == Approx(backward[k]));
+    CHECK(forward[k] == together[k]);  // add_agents: one pass, the same volumes
+  }
   CHECK(forward[spots.size() / 2 + 6] < 0.9);  // inside the lattice: compressed (4 / ~4.9)
+  // A batch with a bad agent is refused whole, naming it.
+  Simulation sim(s, Model::default_model(), 1);
+  std::vector<AgentDef> defs(3);
+  for (size_t k = 0; k < defs.size(); ++k) {
+    defs[k].position = spots[k];
+    defs[k].behaviour = sim.behaviour_of_group(0);
+  }
+  defs[2].position = Vec2(-1, 5);
+  CHECK_THROWS_WITH(sim.add_agents(defs), Catch::Contains("agent 2 of 3") && Catch::Contains("outside the domain"));
+  CHECK(sim.world().size() == 0);
 }

@@ -108,6 +108,8 @@ WindowSim start_window(const ScenarioDef& sc, const Model& model, const Observed
       nearest[i] = std::min(nearest[i], d);
       nearest[j] = std::min(nearest[j], d);
     }
+  std::vector<AgentDef> defs;
+  std::vector<size_t> placed;  // index in s of each def
   for (size_t i = 0; i < s.x.size(); ++i) {
     AgentDef a;
     Vec2 x = s.x[i];
@@ -128,8 +130,14 @@ WindowSim start_window(const ScenarioDef& sc, const Model& model, const Observed
     if (!std::isfinite(a.desired_speed)) a.desired_speed = 0;
     a.behaviour = sim.behaviour_of_group(0);
     a.group = 0;
-    ws.ids.push_back(sim.geo_ok(x) ? sim.add_agent(a) : 0);
+    ws.ids.push_back(0);
+    if (sim.geo_ok(x)) {
+      placed.push_back(i);
+      defs.push_back(a);
+    }
   }
+  const std::vector<EntityId> ids = sim.add_agents(defs);
+  for (size_t k = 0; k < placed.size(); ++k) ws.ids[placed[k]] = ids[k];
   return ws;
 }
 

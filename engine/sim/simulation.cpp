@@ -206,7 +206,7 @@ AgentDef Simulation::with_entry_heading(AgentDef d) const {
   return d;
 }
 
-EntityId Simulation::add_agent(const AgentDef& def) {
+void Simulation::check_agent(const AgentDef& def) const {
   if (def.behaviour < 0 || def.behaviour >= static_cast<int>(behaviours_.size()))
     throw Error("agent behaviour index " + std::to_string(def.behaviour) + " out of range");
   if (!def.position.allFinite() || !def.velocity.allFinite())
@@ -220,16 +220,34 @@ EntityId Simulation::add_agent(const AgentDef& def) {
   if (model_.has_traction() && def.comfort_distance <= model_.params.contact_epsilon)
     throw Error("agent comfort_distance must be larger than the model's contact_epsilon (" +
                 format_number(model_.params.contact_epsilon) + " m)");
-  // Keep the cell lists wide enough for the new agent's reach.
-  max_radius_ = std::max(max_radius_, def.body_radius);
-  max_comfort_ = std::max(max_comfort_, def.comfort_distance);
-  max_v0_ = std::max(max_v0_, def.desired_speed);
+}
+
+EntityId Simulation::add_agent(const AgentDef& def) { return add_agents({def}).front(); }
+
+std::vector<EntityId> Simulation::add_agents(const std::vector<AgentDef>& defs) {
+  for (size_t k = 0; k < defs.size(); ++k) {
+    try {
+      check_agent(defs[k]);
+    } catch (const Error& e) {
+      if (defs.size() == 1) throw;
+      throw Error("agent " + std::to_string(k) + " of " + std::to_string(defs.size()) + ": " + e.what());
+    }
+  }
+  // Keep the cell lists wide enough for the new agents' reach.
+  for (const AgentDef& def : defs) {
+    max_radius_ = std::max(max_radius_, def.body_radius);
+    max_comfort_ = std::max(max_comfort_, def.comfort_distance);
+    max_v0_ = std::max(max_v0_, def.desired_speed);
+  }
   if (neighbour_reach() > neighbours_.range) init_neighbours(neighbour_reach());
-  const EntityId e = world_.add(with_entry_heading(def));
-  // People added one by one before a step (a recorded state, a replay's arrivals) are one
-  // batch: each add recomputes the whole batch, so J does not depend on the order of adding.
-  if (model_.density_referenced()) reference_volumes(world_, batch_start_, model_.params.rest_density);
-  return e;
+  std::vector<EntityId> ids;
+  ids.reserve(defs.size());
+  for (const AgentDef& def : defs) ids.push_back(world_.add(with_entry_heading(def)));
+  // People added before a step (a recorded state, a replay's arrivals, one by one or together)
+  // are one batch: J is recomputed over the whole batch, so it does not depend on the order of
+  // adding nor on how the batch was split into calls.
+  if (model_.density_referenced() && !defs.empty()) reference_volumes(world_, batch_start_, model_.params.rest_density);
+  return ids;
 }
 
 // Hexagonal lattice at the density asked for, jittered without overlap, inside the region and

@@ -90,7 +90,13 @@ class Simulation {
   PairStats pair_stats();
 
   // Add one agent (C API, tests); returns its id. Behaviour: index into behaviours().
+  // Each call recomputes the reference volumes of everyone added since the last step (O(n)):
+  // add many people with add_agents.
   EntityId add_agent(const AgentDef& def);
+  // Add agents together (all are checked before any is added; an Error names the first bad
+  // one), one reference-volume pass for them all; returns their ids in order. The same state as
+  // adding them one by one.
+  std::vector<EntityId> add_agents(const std::vector<AgentDef>& defs);
   // Whether an agent may stand at p: inside the domain and outside every solid.
   bool geo_ok(const Vec2& p) const { return scenario_.geo.sdf(p) >= 0; }
   const std::vector<Behaviour>& behaviours() const { return behaviours_; }
@@ -134,6 +140,7 @@ class Simulation {
   double neighbour_reach() const;
   AgentDef agent_template(const GroupDef& g, int group_index) const;
   AgentDef with_entry_heading(AgentDef d) const;  // the heading behaviour's direction at entry
+  void check_agent(const AgentDef& def) const;     // throws Error naming what add_agent refuses
   void update_routes();       // at a step's start: recompute route_pace_ when due, then the routes
   void apply_route_pace(); // the goal navigation fields' costs from route_pace_
   const std::vector<double>& route_costs();  // the cost per navigation cell from route_pace_

@@ -175,7 +175,9 @@ CMPM_API cmpm_Status cmpm_World_GetFieldShape(cmpm_WorldId world, int32_t* out_n
 CMPM_API cmpm_Status cmpm_World_GetField(cmpm_WorldId world, int32_t field, double* out, int32_t capacity,
                                          int32_t* out_written);
 
-/* Agents. */
+/* Agents. People added between two steps are one batch: each call recomputes the reference
+ * volumes (the density-referenced J) of the whole batch, so a call costs O(agents); populate a
+ * large crowd through the scenario's groups rather than tens of thousands of calls. */
 CMPM_API cmpm_Status cmpm_World_AddAgent(cmpm_WorldId world, const cmpm_AgentDef* def, cmpm_AgentId* out_agent);
 CMPM_API cmpm_Status cmpm_World_RemoveAgent(cmpm_WorldId world, cmpm_AgentId agent);
 CMPM_API cmpm_Status cmpm_World_SetAgentTarget(cmpm_WorldId world, cmpm_AgentId agent, const char* target);
