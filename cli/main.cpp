@@ -258,6 +258,8 @@ const char* kFlowHelp =
     "  --roi X,Y,X,Y,...  region of interest, a polygon in pixels (x right, y down)\n"
     "  --sample-stride N  pixels between flow samples (default 2)\n"
     "  --min-speed V      m/s below which a pixel counts as still (default 0.05)\n"
+    "  --glitch-ratio R   a field whose RMS speed is R times that of the 0.5 s before and after\n"
+    "                     it is a camera glitch (jump, cut), cleared and listed (default 2; 0: off)\n"
     "  --quiet            no progress line\n";
 
 const char* kRenderHelp =
@@ -510,6 +512,10 @@ Args parse_args(int argc, char** argv, int first) {
       for (size_t k = 0; k < v.size(); k += 2) a.video.video.roi.emplace_back(v[k], v[k + 1]);
     } else if (s == "--sample-stride") a.video.field.sample_stride = static_cast<int>(parse_double(s, value(s.c_str()), 1, 64, "1..64 pixels"));
     else if (s == "--min-speed") a.video.field.min_speed = parse_double(s, value(s.c_str()), 0, 10, "a speed in [0, 10] m/s");
+    else if (s == "--glitch-ratio") {
+      a.video.field.glitch_ratio = parse_double(s, value(s.c_str()), 0, 100, "0 (off) or a ratio in (1, 100)");
+      if (a.video.field.glitch_ratio > 0 && a.video.field.glitch_ratio <= 1) usage_error("--glitch-ratio must be 0 (off) or above 1");
+    }
     else if (s == "--settle") a.settle = parse_double(s, value(s.c_str()), 0, 1e4, "seconds >= 0");
     else if (s == "--tilt") a.tilt = parse_double(s, value(s.c_str()), 0, 79, "degrees in [0, 79]");
     else if (s == "--size") {
@@ -723,7 +729,7 @@ int cmd_train_video(const Args& a) {
   o.grid_min_mass = vo.min_mass;  // an observed node the particles left costs as in Err_vel
   std::vector<TrainWindow> train, val;
   const double fps = d.fields.flow.info.fps;
-  make_video_windows(d.venue, d.fields.flow.fields, fps, d.split, vo, o.validation_fraction, train, val);
+  make_video_windows(d.venue, d.fields.flow.fields, fps, d.split, vo, o.validation_fraction, train, val, d.fields.flow.glitches);
   const Model start = !a.model.empty() ? Model::load(a.model, a.input) : d.venue.model_or_default();
   if (!a.quiet)
     std::printf("training %s material on %zu clips of %g s (%zu validation) from fields 0..%zu of %zu; %g persons/m2 sampled\n",
@@ -751,8 +757,12 @@ int cmd_predict_video(const Args& a) {
   for (const auto& p : a.models) models.push_back(Model::load(p, a.input));
   VideoLearnOptions vo = a.video_learn;
   vo.desired_speed = desired_speed_of(a);
+  const auto& glitches = d.fields.flow.glitches;
   const auto preds = predict_video(d.venue, models, d.fields.flow.fields, d.fields.flow.covered, d.fields.flow.info.fps, d.split,
-                                   vo, a.threads);
+                                   vo, a.threads, glitches);
+  const size_t end = held_out_end(d.fields.flow.fields.size(), d.split, glitches);
+  if (end < d.fields.flow.fields.size())
+    std::printf("field %zu is a camera glitch: the held-out part ends before it\n", end);
   std::printf("Err_vel (m2/s2, observed nodes away from the view's border) from field %zu of %zu:\n%-26s", d.split,
               d.fields.flow.fields.size(), "horizon (s)");
   for (const auto& h : preds[0].horizons) std::printf(" %9.2f", h.seconds);
@@ -766,8 +776,9 @@ int cmd_predict_video(const Args& a) {
     std::error_code ec;
     std::filesystem::create_directories(a.out, ec);
     if (ec) throw Error(a.out + ": cannot create folder (" + ec.message() + ")");
-    save_json_file(json{{"video", a.video.path}, {"fields", d.fields.flow.fields.size()}, {"start", d.split},
-                        {"fps", d.fields.flow.info.fps}, {"unit", "m2/s2"}, {"methods", video_prediction_json(preds)}},
+    save_json_file(json{{"video", a.video.path}, {"fields", d.fields.flow.fields.size()}, {"start", d.split}, {"end", end},
+                        {"camera_glitches", glitches}, {"fps", d.fields.flow.info.fps}, {"unit", "m2/s2"},
+                        {"methods", video_prediction_json(preds)}},
                    a.out + "/prediction.json");
     write_video_prediction_png(a.out + "/prediction.png", preds, "grid velocity error on the held-out part of the video");
   }
@@ -858,6 +869,8 @@ int cmd_flow(const Args& a) {
               j["method"].get<std::string>().c_str(), j["calibrated"].get<bool>() ? "homography" : "scale",
               j["width"].get<int>(), j["height"].get<int>(), j["fps"].get<double>(), j["moving_nodes_per_frame"].get<double>(),
               j["mean_speed"].get<double>(), j["frames_per_second_processed"].get<double>(), a.out.c_str());
+  if (!j["camera_glitches"].empty())
+    std::printf("camera glitches (cleared: no node observed): fields %s\n", j["camera_glitches"].dump().c_str());
   return 0;
 }
 

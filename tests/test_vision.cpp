@@ -5,6 +5,7 @@
 #include <catch2/catch.hpp>
 
 #include <cmath>
+#include <functional>
 #include <filesystem>
 #include <fstream>
 
@@ -294,4 +295,70 @@ TEST_CASE("the heading behaviour walks on in the direction of the velocity at en
   CHECK(da.y() > 2);                   // on at about its desired speed, in +y
   CHECK(std::abs(da.x()) < 0.05);
   CHECK(db.norm() < 1e-9);             // standing at entry: no direction, no drive
+}
+
+TEST_CASE("a camera glitch is found as a one-frame speed spike over most of the view and nothing else is", "[vision]") {
+  // 60 fields at 25 fps on a 20 x 20 grid the image covers: a crowd filling the view walks at
+  // about 1 m/s with flow noise; field 30 is a camera jolt (every node three times as fast).
+  const int nx = 20, ny = 20;
+  const std::vector<char> covered(nx * ny, 1);
+  auto fields_with = [&](const std::function<double(size_t k, size_t i)>& speed) {
+    std::vector<GridVelocityField> fs(60);
+    for (size_t k = 0; k < fs.size(); ++k) {
+      GridVelocityField& f = fs[k];
+      f.origin = Vec2(0, 0);
+      f.dx = 0.5;
+      f.nx = nx;
+      f.ny = ny;
+      f.velocity.assign(nx * ny, Vec2::Zero());
+      f.mask.assign(nx * ny, 0);
+      for (size_t i = 0; i < f.velocity.size(); ++i) {
+        const double s = speed(k, i);
+        if (s <= 0) continue;
+        const double noise = 0.2 * std::sin(static_cast<double>(7 * k + 13 * i));
+        f.velocity[i] = Vec2(s + noise, 0.1 * noise);
+        f.mask[i] = 1;
+      }
+    }
+    return fs;
+  };
+  FieldOptions o;
+  const auto jolt = fields_with([](size_t k, size_t) { return k == 30 ? 3.0 : 1.0; });
+  CHECK(find_camera_glitches(jolt, covered, 25, o) == std::vector<size_t>{30});
+  // The last field (no field after it to compare with) is judged on the fields before it.
+  const auto at_end = fields_with([](size_t k, size_t) { return k == 59 ? 3.0 : 1.0; });
+  CHECK(find_camera_glitches(at_end, covered, 25, o) == std::vector<size_t>{59});
+  // A crowd that starts walking and keeps walking is no glitch.
+  const auto onset = fields_with([](size_t k, size_t) { return k < 30 ? 0.3 : 1.2; });
+  CHECK(find_camera_glitches(onset, covered, 25, o).empty());
+  // A few fast walkers in an otherwise still view (10% of it) are no glitch either.
+  const auto few = fields_with([](size_t k, size_t i) { return i % 10 ? 0.0 : (k == 30 ? 3.0 : 1.0); });
+  CHECK(find_camera_glitches(few, covered, 25, o).empty());
+  o.glitch_ratio = 0;
+  CHECK(find_camera_glitches(jolt, covered, 25, o).empty());
+  o.glitch_ratio = 0.5;
+  CHECK_THROWS_WITH(find_camera_glitches(jolt, covered, 25, o), Contains("glitch ratio"));
+  CHECK_THROWS_WITH(find_camera_glitches(jolt, std::vector<char>(10, 1), 25, FieldOptions{}), Contains("another grid"));
+
+  // Training clips do not cross a glitch; the held-out part ends before the first one after its start.
+  ScenarioDef venue = ScenarioDef::load(test::scenario_path("video_ring"));
+  VideoLearnOptions vo;
+  vo.density = 2;
+  vo.clip = 0.4;
+  vo.stride = 0.04;
+  vo.start_frames = 3;
+  auto shifted = jolt;
+  for (auto& f : shifted) f.origin = venue.geo.lo;
+  std::vector<TrainWindow> train, val;
+  make_video_windows(venue, shifted, 25, 60, vo, 0.25, train, val, {30});
+  REQUIRE(!train.empty());
+  const size_t length = 10, lead = 2;
+  for (const auto* set : {&train, &val})
+    for (const TrainWindow& w : *set) {
+      const size_t s = static_cast<size_t>(w.start.frame);
+      CHECK((s + length < 30 || s > 30 + lead));
+    }
+  CHECK(held_out_end(60, 40, {30}) == 60);
+  CHECK(held_out_end(60, 20, {10, 30, 50}) == 30);
+  CHECK(held_out_end(60, 30, {30}) == 60);
 }

@@ -32,7 +32,9 @@ for v in "${videos[@]}"; do
 import json, sys
 d = json.load(open(sys.argv[1]))
 hs = d["methods"][0]["horizons"]
-print(f"\n{sys.argv[2]}: {d['fields'] + 1} frames at {d['fps']:g} fps; held out from field {d['start']}")
+end = d.get("end", d["fields"])
+cut = f" (field {end} is a camera glitch: a jump or a cut)" if end < d["fields"] else ""
+print(f"\n{sys.argv[2]}: {d['fields'] + 1} frames at {d['fps']:g} fps; held out: fields {d['start']} to {end - 1}{cut}")
 print("\n| method | " + " | ".join(f"{h['seconds']:.2f} s" for h in hs) + " |")
 print("|---|" + "---|" * len(hs))
 best = [min(m["horizons"][k]["err_vel"] for m in d["methods"]) for k in range(len(hs))]

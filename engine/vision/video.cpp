@@ -191,6 +191,51 @@ void FieldOptions::check() const {
   if (!(min_speed >= 0 && min_speed < 10)) throw Error("field: min_speed must be in [0, 10) m/s, got " + format_number(min_speed));
   if (!(min_moving_share >= 0 && min_moving_share <= 1)) throw Error("field: min_moving_share must be in [0, 1], got " + format_number(min_moving_share));
   if (!(min_coverage > 0 && min_coverage <= 1)) throw Error("field: min_coverage must be in (0, 1], got " + format_number(min_coverage));
+  if (!(glitch_ratio == 0 || (glitch_ratio > 1 && glitch_ratio < 100)))
+    throw Error("field: glitch ratio must be 0 (no detection) or in (1, 100), got " + format_number(glitch_ratio));
+  if (!(glitch_window > 0 && glitch_window <= 60)) throw Error("field: glitch window must be in (0, 60] s, got " + format_number(glitch_window));
+  if (!(glitch_min_share >= 0 && glitch_min_share <= 1)) throw Error("field: glitch_min_share must be in [0, 1], got " + format_number(glitch_min_share));
+}
+
+std::vector<size_t> find_camera_glitches(const std::vector<GridVelocityField>& fields, const std::vector<char>& covered, double fps,
+                                         const FieldOptions& o) {
+  o.check();
+  std::vector<size_t> out;
+  if (o.glitch_ratio == 0 || fields.empty()) return out;
+  if (!(fps > 0)) throw Error("camera glitches: frame rate must be > 0, got " + format_number(fps));
+  const double seen = static_cast<double>(std::count(covered.begin(), covered.end(), 1));
+  // RMS speed over each field's moving nodes (NaN where none moves), and their share of the view.
+  std::vector<double> rms(fields.size(), std::nan("")), share(fields.size(), 0);
+  for (size_t k = 0; k < fields.size(); ++k) {
+    if (fields[k].velocity.size() != covered.size()) throw Error("camera glitches: field " + std::to_string(k) + " is on another grid");
+    double s = 0, n = 0;
+    for (size_t i = 0; i < fields[k].velocity.size(); ++i)
+      if (fields[k].mask[i] > 0) {
+        s += fields[k].velocity[i].squaredNorm();
+        n += 1;
+      }
+    if (n > 0) rms[k] = std::sqrt(s / n);
+    share[k] = seen > 0 ? n / seen : 0;
+  }
+  const long w = std::max(1L, std::lround(o.glitch_window * fps)), n = static_cast<long>(fields.size());
+  // Median of the defined values in [a, b); NaN with fewer than 3.
+  auto median = [&](long a, long b) {
+    std::vector<double> v;
+    for (long k = std::max(0L, a); k < std::min(n, b); ++k)
+      if (!std::isnan(rms[static_cast<size_t>(k)])) v.push_back(rms[static_cast<size_t>(k)]);
+    if (v.size() < 3) return std::nan("");
+    std::nth_element(v.begin(), v.begin() + static_cast<long>(v.size() / 2), v.end());
+    return v[v.size() / 2];
+  };
+  for (long k = 0; k < n; ++k) {
+    const double r = rms[static_cast<size_t>(k)];
+    if (std::isnan(r) || share[static_cast<size_t>(k)] < o.glitch_min_share) continue;
+    const double before = median(k - w, k), after = median(k + 1, k + 1 + w);
+    if (std::isnan(before) && std::isnan(after)) continue;
+    const bool spike = (std::isnan(before) || r > o.glitch_ratio * before) && (std::isnan(after) || r > o.glitch_ratio * after);
+    if (spike) out.push_back(static_cast<size_t>(k));
+  }
+  return out;
 }
 
 Grid grid_covering(const Calibration& cal, const std::vector<Vec2>& region_in, int width, int height, double cell) {
@@ -314,6 +359,11 @@ VideoFlow extract_video_flow(const std::string& path, const VideoOptions& vo, co
     if (progress) progress(++done, total);
   }
   if (out.fields.empty()) throw Error(path + ": fewer than two frames in the range; flow needs two");
+  out.glitches = find_camera_glitches(out.fields, out.covered, out.info.fps, field);
+  for (size_t k : out.glitches) {
+    std::fill(out.fields[k].velocity.begin(), out.fields[k].velocity.end(), Vec2::Zero());
+    std::fill(out.fields[k].mask.begin(), out.fields[k].mask.end(), 0.0);
+  }
   return out;
 }
 

@@ -93,6 +93,15 @@ struct FieldOptions {
   double min_pixels = 0.2;        // pixels per frame: so does one whose flow is shorter (the flow's noise floor)
   double min_moving_share = 0.3;  // of a node's sampled ground weight that must move for the node to count
   double min_coverage = 0.3;      // of a node's full B-spline weight (dx^2 of ground) the image must cover
+  // Camera glitches (a jump, a cut, a shake): a field whose RMS speed over its moving nodes
+  // exceeds glitch_ratio times the median of the fields within glitch_window seconds before it,
+  // and as much after it (where at least 3 fields lie on that side), with at least
+  // glitch_min_share of the nodes the image covers moving. A crowd does not double its speed for
+  // one frame; a camera does, and moves the whole view (a few walkers' RMS speed is noisier
+  // than that, and they cover a small share of the view). glitch_ratio 0: no detection.
+  double glitch_ratio = 2;
+  double glitch_window = 0.5;     // s
+  double glitch_min_share = 0.25;
   void check() const;
 };
 
@@ -136,8 +145,16 @@ struct VideoFlow {
   std::vector<Vec2> roi;
   std::vector<GridVelocityField> fields;
   std::vector<char> covered;  // nodes the image covers (FieldOptions::min_coverage)
+  // Fields found to be camera glitches (find_camera_glitches), ascending. Their velocity and mask
+  // are cleared (no node observed): training clips and held-out predictions do not cross them.
+  std::vector<size_t> glitches;
   double seconds_per_field() const { return 1 / info.fps; }
 };
+
+// The fields that are camera glitches by FieldOptions::glitch_ratio and glitch_window.
+// `covered`: the nodes the image covers (VideoFlow::covered).
+std::vector<size_t> find_camera_glitches(const std::vector<GridVelocityField>& fields, const std::vector<char>& covered, double fps,
+                                         const FieldOptions& o);
 
 using FlowProgress = std::function<void(long done, long total)>;
 // Called with each field's index, its later frame (grey) and the flow in pixels per frame.

@@ -160,6 +160,7 @@ json run_flow_job(const VideoSource& src, const ScenarioDef* scenario, const std
          {"calibrated", vf.calibration.is_homography()},
          {"grid", {{"origin", {vf.grid.origin.x(), vf.grid.origin.y()}}, {"dx", vf.grid.dx}, {"nx", vf.grid.nx}, {"ny", vf.grid.ny}}},
          {"moving_nodes_per_frame", kept / static_cast<double>(fields.size())},
+         {"camera_glitches", vf.flow.glitches},
          {"mean_speed", speed_n > 0 ? speed / speed_n : 0.0},
          {"seconds", seconds},
          {"frames_per_second_processed", static_cast<double>(fields.size() + 1) / seconds}};

@@ -67,7 +67,7 @@ GridVelocityField start_field(const std::vector<GridVelocityField>& fields, size
 
 void make_video_windows(const ScenarioDef& venue, const std::vector<GridVelocityField>& fields, double fps, size_t end,
                         const VideoLearnOptions& vo, double validation_fraction, std::vector<TrainWindow>& train,
-                        std::vector<TrainWindow>& validation) {
+                        std::vector<TrainWindow>& validation, const std::vector<size_t>& glitches) {
   vo.check();
   train.clear();
   validation.clear();
@@ -75,7 +75,11 @@ void make_video_windows(const ScenarioDef& venue, const std::vector<GridVelocity
   const size_t length = static_cast<size_t>(std::max(1L, std::lround(vo.clip * fps)));
   const size_t stride = static_cast<size_t>(std::max(1L, std::lround(vo.stride * fps)));
   std::vector<size_t> starts;
-  for (size_t s = static_cast<size_t>(vo.start_frames) - 1; s + length < end; s += stride) starts.push_back(s);
+  const size_t lead = static_cast<size_t>(vo.start_frames) - 1;
+  for (size_t s = lead; s + length < end; s += stride) {
+    const bool crosses = std::any_of(glitches.begin(), glitches.end(), [&](size_t g) { return g + lead >= s && g <= s + length; });
+    if (!crosses) starts.push_back(s);
+  }
   const size_t n_val = static_cast<size_t>(std::ceil(validation_fraction * static_cast<double>(starts.size())));
   const size_t n_train = starts.size() - std::min(starts.size(), n_val);
   const size_t val_start = n_train < starts.size() ? starts[n_train] : end;
@@ -90,6 +94,12 @@ void make_video_windows(const ScenarioDef& venue, const std::vector<GridVelocity
     w.fields.assign(fields.begin() + static_cast<long>(starts[i]) + 1, fields.begin() + static_cast<long>(starts[i] + length) + 1);
     (is_val ? validation : train).push_back(std::move(w));
   }
+}
+
+size_t held_out_end(size_t fields, size_t start, const std::vector<size_t>& glitches) {
+  for (size_t g : glitches)
+    if (g > start && g < fields) return g;
+  return fields;
 }
 
 namespace {
@@ -114,9 +124,13 @@ void score(const GridVelocityField& pred, const GridVelocityField& obs, const st
 
 std::vector<VideoPrediction> predict_video(const ScenarioDef& scenario, const std::vector<Model>& models,
                                            const std::vector<GridVelocityField>& fields, const std::vector<char>& covered,
-                                           double fps, size_t start, const VideoLearnOptions& vo, int threads) {
+                                           double fps, size_t start, const VideoLearnOptions& vo, int threads,
+                                           const std::vector<size_t>& glitches) {
   vo.check();
-  if (start + 1 >= fields.size()) throw Error("video prediction: nothing held out after field " + std::to_string(start));
+  const size_t end = held_out_end(fields.size(), start, glitches);
+  if (start + 1 >= end)
+    throw Error("video prediction: nothing held out after field " + std::to_string(start) +
+                (end < fields.size() ? " (field " + std::to_string(end) + " is a camera glitch)" : std::string()));
   const GridVelocityField& f0 = fields[start];
   if (covered.size() != f0.velocity.size()) throw Error("video prediction: coverage mask does not match the grid");
   // Border: a node with an unseen neighbour.
@@ -128,7 +142,7 @@ std::vector<VideoPrediction> predict_video(const ScenarioDef& scenario, const st
         for (int di = -1; di <= 1; ++di) all = all && covered[static_cast<size_t>(j + dj) * f0.nx + i + di];
       inner[static_cast<size_t>(j) * f0.nx + i] = all;
     }
-  const size_t held = fields.size() - 1 - start;
+  const size_t held = end - 1 - start;
   std::vector<size_t> at;
   for (int k = 1; k <= vo.horizons; ++k) {
     const size_t h = std::max<size_t>(1, static_cast<size_t>(std::lround(static_cast<double>(k) * static_cast<double>(held) / vo.horizons)));
@@ -188,6 +202,9 @@ std::vector<VideoPrediction> predict_video(const ScenarioDef& scenario, const st
     WindowSim ws = start_window(windowed, m, s, WindowOptions{threads, vo.desired_speed});
     Simulation& sim = *ws.sim;
     for (auto& in : inflow) in.due = 0;
+    // The inflow holds the sampling density at the edge: its rate is density x the speed people
+    // walk in at, which the model's v0_scale sets from the observed speed they are given.
+    const double walk_in = vo.desired_speed == DesiredSpeed::Observed ? m.params.v0_scale : 1.0;
     std::vector<GridVelocityField> at_h;
     size_t done = 0;
     for (size_t h : at) {
@@ -196,7 +213,7 @@ std::vector<VideoPrediction> predict_video(const ScenarioDef& scenario, const st
         sim.step();
         ++done;
         for (auto& in : inflow) {
-          in.due = std::min(2.0, in.due + in.rate * windowed.dt);
+          in.due = std::min(2.0, in.due + walk_in * in.rate * windowed.dt);
           if (in.due < 1) continue;
           const World& w = sim.world();
           bool free = true;

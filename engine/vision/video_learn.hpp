@@ -49,9 +49,10 @@ ObservedState sample_particles(const GridVelocityField& field, double density, c
 GridVelocityField start_field(const std::vector<GridVelocityField>& fields, size_t start, double fps, const VideoLearnOptions& vo);
 
 // Training and validation windows from fields[0, end) (validation: the last share of the clips).
+// A clip (with the fields its start state is sampled from) never contains a camera glitch.
 void make_video_windows(const ScenarioDef& venue, const std::vector<GridVelocityField>& fields, double fps, size_t end,
                         const VideoLearnOptions& vo, double validation_fraction, std::vector<TrainWindow>& train,
-                        std::vector<TrainWindow>& validation);
+                        std::vector<TrainWindow>& validation, const std::vector<size_t>& glitches = {});
 
 struct VideoHorizon {
   double seconds = 0;  // after the start of the held-out part
@@ -68,9 +69,14 @@ struct VideoPrediction {
 // Predicts fields[start + h] for the horizons from the state at `start` (the first field of the
 // held-out part): persistence, constant velocity, and each model rolled forward in the scenario.
 // `covered`: nodes the camera sees (a node next to an unseen one is border and not scored).
+// The held-out part ends before the first camera glitch after `start` (held_out_end): after a
+// jump or a cut the image shows other ground.
 std::vector<VideoPrediction> predict_video(const ScenarioDef& scenario, const std::vector<Model>& models,
                                            const std::vector<GridVelocityField>& fields, const std::vector<char>& covered,
-                                           double fps, size_t start, const VideoLearnOptions& vo, int threads);
+                                           double fps, size_t start, const VideoLearnOptions& vo, int threads,
+                                           const std::vector<size_t>& glitches = {});
+// The end (exclusive) of the held-out part that starts at `start`: the first glitch after it, or fields.
+size_t held_out_end(size_t fields, size_t start, const std::vector<size_t>& glitches);
 
 json video_prediction_json(const std::vector<VideoPrediction>& p);
 
