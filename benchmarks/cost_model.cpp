@@ -70,6 +70,7 @@ MachineLimits probe_machine(int threads) {
 std::vector<KernelCost> kernel_costs(const Simulation& sim, const PairStats& st) {
   const double n = static_cast<double>(std::max<size_t>(1, sim.world().size()));
   const double cand = static_cast<double>(st.candidates) / n, pairs = static_cast<double>(st.pairs) / n;
+  const double ahead = static_cast<double>(st.ahead) / n;
   const double nodes = static_cast<double>(sim.grid().nodes()) / n;
   // Traction network: 2 in out + out per dense layer, plus each activation (exp-based tanh and
   // softplus: one transcendental each, a few flops around it).
@@ -87,6 +88,9 @@ std::vector<KernelCost> kernel_costs(const Simulation& sim, const PairStats& st)
       {"drive", 38, 16 + 16 + 8 + 4 + 4 + 16 + 16 + 4 * 16},
       // counting sort by cell: cell index 6 flops; reads x, writes cell and order.
       {"neighbours", 6, 16 + 4 + 4 + 4},
+      // per candidate ahead: offset 2, along and side 6, lane tests 4, the other's lane 10; per
+      // agent: speed and acceleration 8. Reads x, heading, radius, free speed, id of neighbours.
+      {"headway", ahead * 22 + 8, 16 + 16 + 8 + 8 + 16},
       // per candidate: difference and length 6; per pair: features 22, network, phi (a log) 4,
       // force and virial 8; per agent: stress (one pow) and pressure 12. Reads x, v, heading,
       // radius, comfort, F, J; writes force, virial, pressure; neighbours' x via the cell lists.

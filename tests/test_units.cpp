@@ -6,7 +6,9 @@
 #include <filesystem>
 #include <fstream>
 
+#include "engine/core/parallel.hpp"
 #include "engine/io/trajectory.hpp"
+#include "engine/sim/kernels.hpp"
 #include "support.hpp"
 
 using namespace crowdmpm;
@@ -302,4 +304,50 @@ TEST_CASE("agents added one by one before a step get the same reference volumes 
   defs[2].position = Vec2(-1, 5);
   CHECK_THROWS_WITH(sim.add_agents(defs), Catch::Contains("agent 2 of 3") && Catch::Contains("outside the domain"));
   CHECK(sim.world().size() == 0);
+}
+
+TEST_CASE("the headway's lane search finds the same person ahead as a search over everyone", "[units]") {
+  // The headway visits only the cells its lane crosses (NeighbourGrid::for_each_candidate_ahead):
+  // against the rule applied to every pair, in an evacuation, two crowds charging each other and
+  // a queue at a gate, at every person whose speed the one ahead limits.
+  for (const char* name : {"drill", "hellfest_crush", "bottleneck"}) {
+    ScenarioDef s = ScenarioDef::load(test::scenario_path(name));
+    Simulation sim(s, test::model_of(s), 1);
+    sim.run_steps(150);
+    const World& w = sim.world();
+    const MaterialParams& P = sim.model().params;
+    REQUIRE(P.time_gap > 0);
+    NeighbourGrid nb = sim.neighbour_grid();
+    ThreadPool pool(1);
+    nb.build(w, pool);
+    long limited = 0;
+    for (size_t p = 0; p < w.size(); ++p) {
+      const double u = w.free_speed[p];
+      if (!(u > 0)) continue;
+      const Vec2 e = w.heading[p];
+      double best = 1e300;
+      for (size_t q = 0; q < w.size(); ++q) {
+        if (q == p) continue;
+        const Vec2 r = w.x[q] - w.x[p];
+        const double along = r.dot(e), side = r.x() * e.y() - r.y() * e.x(), bodies = w.radius[p] + w.radius[q];
+        if (along <= 0 || std::abs(side) >= P.headway_width * bodies) continue;
+        if (w.free_speed[q] > 0) {
+          const Vec2 eq = w.heading[q];
+          const double along_q = -r.dot(eq), side_q = r.y() * eq.x() - r.x() * eq.y();
+          if (along_q > 0 && std::abs(side_q) < P.headway_width * bodies && (along_q > along || (along_q == along && w.id[p] < w.id[q])))
+            continue;
+        }
+        best = std::min(best, along - bodies);
+      }
+      const Headway h = headway_point(nb, w, p, e, P.headway_width, P.time_gap * u);
+      if (best < P.time_gap * u) {
+        ++limited;
+        CHECK(h.gap == best);
+      } else {
+        CHECK(h.gap >= P.time_gap * u);
+      }
+    }
+    INFO(name << ": " << limited << " of " << w.size() << " people limited by the one ahead");
+    CHECK(limited > 10);
+  }
 }

@@ -168,10 +168,12 @@ void kernel_drive(const StepInputs& in, World& w, ThreadPool& pool) {
 // ---------------------------------------------------------------------------------------------
 // 1b. Headway speed adaptation: a_p += (min(u_p, max(0, s_p / T)) - u_p) e_p / tau (kernels.hpp).
 
-Headway headway_point(const NeighbourGrid& nb, const World& w, size_t p, const Vec2& e, double width) {
+Headway headway_point(const NeighbourGrid& nb, const World& w, size_t p, const Vec2& e, double width, double look) {
   Headway h;
   const Vec2 xp = w.x[p];
-  nb.for_each_candidate(p, [&](size_t q) {
+  // Nobody further along than T u_p + r_p + r_q limits p: the strip searched ends there.
+  const double widest = w.radius[p] + nb.max_radius;
+  nb.for_each_candidate_ahead(p, xp, e, look + widest, width * widest, [&](size_t q) {
     const Vec2 r = w.x[q] - xp;
     const double along = r.dot(e), side = r.x() * e.y() - r.y() * e.x();
     const double bodies = w.radius[p] + w.radius[q];
@@ -209,7 +211,7 @@ void kernel_headway(const StepInputs& in, const NeighbourGrid& nb, World& w, Thr
     for (size_t p = b; p < e; ++p) {
       const double u = w.free_speed[p];
       if (!(u > 0)) continue;
-      const Headway h = headway_point(nb, w, p, w.heading[p], P.headway_width);
+      const Headway h = headway_point(nb, w, p, w.heading[p], P.headway_width, P.time_gap * u);
       const double V = std::max(0.0, h.gap / P.time_gap);
       if (V < u) w.accel[p] += (V - u) / P.tau * w.heading[p];
     }

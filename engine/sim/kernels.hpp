@@ -3,6 +3,7 @@
 // function of the arrays it names; outputs are per particle or per grid node and never shared
 // between threads, so results do not depend on the thread count. P2G scatters particles sorted
 // by stencil base in row blocks that never share a node (even blocks, then odd), not with atomics.
+#include <algorithm>
 #include <vector>
 
 #include "engine/sim/stencil.hpp"
@@ -41,8 +42,14 @@ struct Grid {
 struct NeighbourGrid {
   Vec2 origin = Vec2::Zero();
   double h = 1;
-  double range = 0;  // interaction reach the cells were sized for
-  int span = 1;      // cells searched on each side: ceil(range / h)
+  double range = 0;  // pair interaction reach the cells were sized for
+  int span = 1;      // cells searched on each side for a pair: ceil(range / h)
+  // Cells searched on each side for the headway, which looks further ahead than any pair
+  // reaches (2 r + T u), and the largest body radius: set by the simulation for its agents
+  // (Simulation::size_headway_span). The cells stay sized for the pairs, so the traction's loop
+  // stays short, and the headway visits only the cells its lane crosses.
+  int ahead_span = 1;
+  double max_radius = 0;
   int nx = 0, ny = 0;
   std::vector<int> start, order, cell, cursor;
   void init(const Geometry& geo, double reach, double min_cell = 0);
@@ -51,9 +58,43 @@ struct NeighbourGrid {
   // statistics share this one loop.
   template <class F>
   void for_each_candidate(size_t p, F&& f) const {
+    scan(p, span, f);
+  }
+  // The candidates that may stand in p's lane ahead (headway_point): those in the cells within
+  // `ahead_span` of p's that a strip from x along e, `length` long and `half_width` to each side,
+  // may reach: the cells of the strip's bounding box, less those whose circumscribed circle
+  // misses the strip (the edge cells, which hold clamped particles, are always kept). In the
+  // order of for_each_candidate.
+  template <class F>
+  void for_each_candidate_ahead(size_t p, const Vec2& x, const Vec2& e, double length, double half_width, F&& f) const {
+    const int c0 = cell[p], ci = c0 % nx, cj = c0 / nx, reach = std::max(span, ahead_span);
+    const Vec2 n(-e.y(), e.x()), tip = x + length * e;
+    const Vec2 lo = x.cwiseMin(tip) - half_width * n.cwiseAbs(), hi = x.cwiseMax(tip) + half_width * n.cwiseAbs();
+    auto index = [&](double v, double o) { return static_cast<int>(std::floor((v - o) / h)); };
+    const int i0 = std::max({0, ci - reach, std::min(nx - 1, index(lo.x(), origin.x()))});
+    const int i1 = std::min({nx - 1, ci + reach, std::max(0, index(hi.x(), origin.x()))});
+    const int j0 = std::max({0, cj - reach, std::min(ny - 1, index(lo.y(), origin.y()))});
+    const int j1 = std::min({ny - 1, cj + reach, std::max(0, index(hi.y(), origin.y()))});
+    const double rho = 0.7072 * h;
+    for (int j = j0; j <= j1; ++j)
+      for (int i = i0; i <= i1; ++i) {
+        if (i > 0 && j > 0 && i < nx - 1 && j < ny - 1) {
+          const Vec2 r = origin + h * Vec2(i + 0.5, j + 0.5) - x;
+          const double along = r.dot(e), side = r.x() * e.y() - r.y() * e.x();
+          if (along < -rho || along > length + rho || std::abs(side) > half_width + rho) continue;
+        }
+        const int k = j * nx + i;
+        for (int s = start[static_cast<size_t>(k)]; s < start[static_cast<size_t>(k) + 1]; ++s) {
+          const size_t q = static_cast<size_t>(order[static_cast<size_t>(s)]);
+          if (q != p) f(q);
+        }
+      }
+  }
+  template <class F>
+  void scan(size_t p, int reach_cells, F&& f) const {
     const int c0 = cell[p], ci = c0 % nx, cj = c0 / nx;
-    for (int dj = -span; dj <= span; ++dj)
-      for (int di = -span; di <= span; ++di) {
+    for (int dj = -reach_cells; dj <= reach_cells; ++dj)
+      for (int di = -reach_cells; di <= reach_cells; ++di) {
         const int i = ci + di, j = cj + dj;
         if (i < 0 || j < 0 || i >= nx || j >= ny) continue;
         const int k = j * nx + i;
@@ -109,7 +150,8 @@ struct Headway {
   size_t q = static_cast<size_t>(-1);  // the nearest person ahead, or none
   double gap = 1e300;                  // s_p, m
 };
-Headway headway_point(const NeighbourGrid& nb, const World& w, size_t p, const Vec2& e, double width);
+// `look`: the free distance T u_p beyond which nobody ahead limits p's speed (the search stops there).
+Headway headway_point(const NeighbourGrid& nb, const World& w, size_t p, const Vec2& e, double width, double look);
 // Reach of the neighbour lists the headway needs for bodies up to max_radius and free speeds up
 // to max_speed (0 when the adaptation is off).
 double headway_reach(const Model& m, double max_radius, double max_free_speed);

@@ -240,6 +240,7 @@ std::vector<EntityId> Simulation::add_agents(const std::vector<AgentDef>& defs) 
     max_v0_ = std::max(max_v0_, def.desired_speed);
   }
   if (neighbour_reach() > neighbours_.range) init_neighbours(neighbour_reach());
+  size_headway_span();
   std::vector<EntityId> ids;
   ids.reserve(defs.size());
   for (const AgentDef& def : defs) ids.push_back(world_.add(with_entry_heading(def)));
@@ -402,11 +403,15 @@ void Simulation::spawn_sources() {
     reference_volumes(world_, first_new, model_.params.rest_density);
 }
 
-// A pair interacts up to r_p + r_q + c_p (or the social force's margin); the headway looks
-// further ahead: the cell lists cover the largest of them over the agents added so far.
-double Simulation::neighbour_reach() const {
-  return std::max(2 * max_radius_ + interaction_margin(model_, max_comfort_),
-                  headway_reach(model_, max_radius_, model_.params.v0_scale * max_v0_));
+// A pair interacts up to r_p + r_q + c_p (or the social force's margin) over the agents added so
+// far: the cells are sized for it. The headway looks further ahead and searches more of them
+// (size_headway_span).
+double Simulation::neighbour_reach() const { return 2 * max_radius_ + interaction_margin(model_, max_comfort_); }
+
+void Simulation::size_headway_span() {
+  const double ahead = headway_reach(model_, max_radius_, model_.params.v0_scale * max_v0_);
+  neighbours_.ahead_span = std::max(neighbours_.span, static_cast<int>(std::ceil(ahead / neighbours_.h - 1e-12)));
+  neighbours_.max_radius = max_radius_;
 }
 
 void Simulation::init_neighbours(double reach) {
@@ -421,6 +426,7 @@ void Simulation::size_neighbour_cells(double cell_reach) {
   // Bound the number of cells (huge venues): larger cells cost time, not correctness.
   const Vec2 ext = scenario_.geo.hi - scenario_.geo.lo;
   neighbours_.init(scenario_.geo, cell_reach, std::sqrt(ext.x() * ext.y() / 2e7));
+  size_headway_span();
 }
 
 void Simulation::prepare_derived() {
@@ -436,7 +442,7 @@ void Simulation::prepare_derived() {
   kernel_p2g(in, world_, grid_, pool_);  // reported pressure of the initial state
 }
 
-const char* const StepProfile::kNames[StepProfile::kParts] = {"drive", "neighbours", "traction", "p2g", "grid_update",
+const char* const StepProfile::kNames[StepProfile::kParts] = {"drive", "neighbours", "headway", "traction", "p2g", "grid_update",
                                                                "g2p", "project", "exits", "sources"};
 
 // Route choice under congestion (after Hughes 2002: the route minimises the travel time at the
@@ -579,6 +585,7 @@ void Simulation::step() {
     neighbours_.build(world_, pool_);
     mark();
     kernel_headway(in, neighbours_, world_, pool_);
+    mark();
     kernel_traction(in, neighbours_, world_, pool_);
     mark();
     kernel_p2g(in, world_, grid_, pool_);
@@ -589,8 +596,8 @@ void Simulation::step() {
     mark();
   } else {
     step_social_force(in);
-    mark();    // profiled as drive; the neighbour, traction and grid parts stay empty
-    part = 6;
+    mark();    // profiled as drive; the neighbour, headway, traction and grid parts stay empty
+    part = 7;
   }
   kernel_project(in, world_, pool_);
   mark();
@@ -638,6 +645,11 @@ PairStats Simulation::pair_stats() {
       ++st.candidates;
       if ((w.x[q] - w.x[p]).norm() < w.radius[p] + w.radius[q] + w.comfort[p]) ++st.pairs;
     });
+    if (model_.is_continuum() && model_.params.time_gap > 0 && w.free_speed[p] > 0) {
+      const double widest = w.radius[p] + nb.max_radius;
+      nb.for_each_candidate_ahead(p, w.x[p], w.heading[p], model_.params.time_gap * w.free_speed[p] + widest,
+                                  model_.params.headway_width * widest, [&](size_t) { ++st.ahead; });
+    }
   }
   return st;
 }

@@ -12,8 +12,8 @@ namespace crowdmpm {
 
 // Wall-clock seconds spent in each part of the step, accumulated while profiling is on.
 struct StepProfile {
-  static constexpr int kParts = 9;
-  static const char* const kNames[kParts];  // drive, neighbours, traction, p2g, grid, g2p, project, exits, sources
+  static constexpr int kParts = 10;
+  static const char* const kNames[kParts];  // drive, neighbours, headway, traction, p2g, grid, g2p, project, exits, sources
   double seconds[kParts] = {0};
   long steps = 0;
 };
@@ -22,6 +22,7 @@ struct StepProfile {
 struct PairStats {
   long candidates = 0;  // particle pairs examined in the cell lists
   long pairs = 0;       // of which within the interaction reach (pair traction evaluated)
+  long ahead = 0;       // particle pairs the headway examines (its longer reach)
 };
 
 struct ExitEvent {
@@ -138,6 +139,7 @@ class Simulation {
   void init_neighbours(double reach);
   void size_neighbour_cells(double cell_reach);  // the cell lists for exactly this reach
   double neighbour_reach() const;
+  void size_headway_span();  // the cells the headway searches, for the agents' longest look ahead
   AgentDef agent_template(const GroupDef& g, int group_index) const;
   AgentDef with_entry_heading(AgentDef d) const;  // the heading behaviour's direction at entry
   void check_agent(const AgentDef& def) const;     // throws Error naming what add_agent refuses
