@@ -134,15 +134,16 @@ World.agent_ids_array = _agent_ids_array
 def _add_agents(self, positions, target, velocities=None, desired_speed=1.3):
     """add_agents(positions, target, velocities=None, desired_speed=1.3) -> numpy int64 array of
     the new ids. positions: array-like (n, 2), m; velocities: (n, 2), m/s, or None for rest;
-    target: exit or goal id, or 'nearest_exit'."""
+    target: exit or goal id, or 'nearest_exit'. One call (cmpm_World_AddAgents): if one agent is
+    refused, none is added."""
     p = _np.asarray(positions, dtype=_np.float64)
     if p.ndim != 2 or p.shape[1] != 2:
         raise ValueError("add_agents: positions must have shape (n, 2), got %s" % (p.shape,))
     v = _np.zeros_like(p) if velocities is None else _np.asarray(velocities, dtype=_np.float64)
     if v.shape != p.shape:
         raise ValueError("add_agents: velocities must have the shape of positions %s, got %s" % (p.shape, v.shape))
-    return _np.array([self.add_agent(float(x), float(y), target, float(vx), float(vy), desired_speed)
-                      for (x, y), (vx, vy) in zip(p, v)], dtype=_np.int64)
+    return _np.array(self.add_agents_xy(DoubleVector(p.ravel().tolist()), target, DoubleVector(v.ravel().tolist()),
+                                        float(desired_speed)), dtype=_np.int64)
 
 World.field_array = _field_array
 World.add_agents = _add_agents

@@ -142,6 +142,32 @@ class World {
     check(cmpm_World_AddAgent(id_, &d, &a));
     return static_cast<long long>(a.value);
   }
+  // Adds agents walking to `target` in one call (cmpm_World_AddAgents: all or none): xy holds
+  // x0, y0, x1, y1, ...; vxy the velocities the same way, or is empty for people at rest.
+  // Returns their ids in order.
+  std::vector<long long> add_agents_xy(const std::vector<double>& xy, const std::string& target,
+                                       const std::vector<double>& vxy = {}, double desired_speed = 1.3) {
+    if (xy.size() % 2) throw std::invalid_argument("add_agents: positions must hold x, y pairs, got " + std::to_string(xy.size()) + " numbers");
+    if (!vxy.empty() && vxy.size() != xy.size())
+      throw std::invalid_argument("add_agents: velocities must hold as many numbers as positions (" + std::to_string(xy.size()) +
+                                  "), got " + std::to_string(vxy.size()));
+    const size_t n = xy.size() / 2;
+    if (n > static_cast<size_t>(INT32_MAX)) throw std::invalid_argument("add_agents: too many agents in one call");
+    std::vector<cmpm_AgentDef> defs(n, cmpm_DefaultAgentDef());
+    for (size_t k = 0; k < n; ++k) {
+      defs[k].x = xy[2 * k];
+      defs[k].y = xy[2 * k + 1];
+      defs[k].vx = vxy.empty() ? 0 : vxy[2 * k];
+      defs[k].vy = vxy.empty() ? 0 : vxy[2 * k + 1];
+      defs[k].desired_speed = desired_speed;
+      defs[k].target = target.c_str();
+    }
+    std::vector<cmpm_AgentId> ids(n);
+    check(cmpm_World_AddAgents(id_, defs.data(), static_cast<int32_t>(n), ids.data()));
+    std::vector<long long> out(n);
+    for (size_t k = 0; k < n; ++k) out[k] = static_cast<long long>(ids[k].value);
+    return out;
+  }
   void remove_agent(long long agent) { check(cmpm_World_RemoveAgent(id_, cmpm_AgentId{static_cast<uint64_t>(agent)})); }
   void set_agent_target(long long agent, const std::string& target) {
     check(cmpm_World_SetAgentTarget(id_, cmpm_AgentId{static_cast<uint64_t>(agent)}, target.c_str()));

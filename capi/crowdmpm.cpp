@@ -432,6 +432,24 @@ cmpm_Status cmpm_World_GetField(cmpm_WorldId world, int32_t field, double* out, 
   });
 }
 
+namespace {
+
+// The engine's agent of a cmpm_AgentDef (throws ApiError or Error naming what is wrong).
+AgentDef agent_of(Simulation& sim, const cmpm_AgentDef& def) {
+  if (def.internal_cookie != kCookie) fail(CMPM_ERROR_UNINITIALIZED_DEF, "the cmpm_AgentDef was not made by cmpm_DefaultAgentDef()");
+  AgentDef a;
+  a.position = Vec2(def.x, def.y);
+  a.velocity = Vec2(def.vx, def.vy);
+  a.body_radius = def.body_radius < 0 ? sim.model().params.body_radius : def.body_radius;
+  a.comfort_distance = def.comfort_distance < 0 ? sim.model().params.comfort_distance : def.comfort_distance;
+  a.desired_speed = def.desired_speed;
+  a.behaviour = behaviour_for(sim, def.target, def.group);
+  a.group = def.group;
+  return a;
+}
+
+}  // namespace
+
 cmpm_Status cmpm_World_AddAgent(cmpm_WorldId world, const cmpm_AgentDef* def, cmpm_AgentId* out_agent) {
   return guard("cmpm_World_AddAgent", CMPM_ERROR_INVALID_ARGUMENT, [&] {
     Held held = lookup(world);
@@ -439,17 +457,35 @@ cmpm_Status cmpm_World_AddAgent(cmpm_WorldId world, const cmpm_AgentDef* def, cm
     require(def, "def");
     require(out_agent, "out_agent");
     out_agent->value = 0;
-    if (def->internal_cookie != kCookie)
-      fail(CMPM_ERROR_UNINITIALIZED_DEF, "the cmpm_AgentDef was not made by cmpm_DefaultAgentDef()");
-    AgentDef a;
-    a.position = Vec2(def->x, def->y);
-    a.velocity = Vec2(def->vx, def->vy);
-    a.body_radius = def->body_radius < 0 ? sim.model().params.body_radius : def->body_radius;
-    a.comfort_distance = def->comfort_distance < 0 ? sim.model().params.comfort_distance : def->comfort_distance;
-    a.desired_speed = def->desired_speed;
-    a.behaviour = behaviour_for(sim, def->target, def->group);
-    a.group = def->group;
-    out_agent->value = sim.add_agent(a);
+    out_agent->value = sim.add_agent(agent_of(sim, *def));
+  });
+}
+
+cmpm_Status cmpm_World_AddAgents(cmpm_WorldId world, const cmpm_AgentDef* defs, int32_t count, cmpm_AgentId* out_agents) {
+  return guard("cmpm_World_AddAgents", CMPM_ERROR_INVALID_ARGUMENT, [&] {
+    Held held = lookup(world);
+    Simulation& sim = held.sim();
+    if (count < 0) fail(CMPM_ERROR_INVALID_ARGUMENT, "count must be >= 0, got " + std::to_string(count));
+    if (count == 0) return;
+    require(defs, "defs");
+    require(out_agents, "out_agents");
+    const size_t n = static_cast<size_t>(count);
+    for (size_t k = 0; k < n; ++k) out_agents[k].value = 0;
+    std::vector<AgentDef> agents;
+    agents.reserve(n);
+    for (size_t k = 0; k < n; ++k) {
+      const std::string which = "agent " + std::to_string(k) + " of " + std::to_string(n) + ": ";
+      try {
+        agents.push_back(agent_of(sim, defs[k]));
+      } catch (const ApiError& e) {
+        fail(e.status, which + e.message);
+      } catch (const Error& e) {
+        fail(CMPM_ERROR_INVALID_ARGUMENT, which + e.what());
+      }
+    }
+    // Simulation::add_agents checks every agent before adding any, and names the first it refuses.
+    const std::vector<EntityId> ids = sim.add_agents(agents);
+    for (size_t k = 0; k < n; ++k) out_agents[k].value = ids[k];
   });
 }
 

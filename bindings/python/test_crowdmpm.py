@@ -70,6 +70,20 @@ class Bindings(unittest.TestCase):
         with self.assertRaisesRegex(RuntimeError, "E must be in"):
             w.set_parameter("E", -1)
 
+    def test_add_agents_all_or_none(self):
+        w = crowdmpm.World(DRILL)
+        n = w.agent_count()
+        ids = w.add_agents([[2.0, 2.0], [2.6, 2.0]], "door", velocities=[[0.5, 0.0], [0.0, 0.5]])
+        self.assertEqual(ids.dtype, np.int64)
+        self.assertEqual(len(ids), 2)
+        self.assertEqual(w.agent_count(), n + 2)
+        self.assertEqual(list(w.agent_state(int(ids[1]))), [2.6, 2.0, 0.0, 0.5])
+        with self.assertRaisesRegex(RuntimeError, "agent 1 of 2"):
+            w.add_agents([[3.0, 2.0], [8.1, 1.0]], "door")  # the second inside a wall
+        self.assertEqual(w.agent_count(), n + 2)
+        with self.assertRaisesRegex(ValueError, "shape"):
+            w.add_agents([1.0, 2.0, 3.0], "door")
+
     def test_errors_raise_with_messages(self):
         with self.assertRaisesRegex(RuntimeError, "invalid JSON"):
             crowdmpm.World('{"format": "crowdmpm-scenario",')

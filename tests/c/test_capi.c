@@ -118,6 +118,37 @@ static void test_agents_and_parameters(void) {
   a.body_radius = NAN;
   CHECK_FAILS(cmpm_World_AddAgent(w, &a, &id), CMPM_ERROR_INVALID_ARGUMENT, "body_radius");
 
+  /* Several agents in one call: all or none. */
+  {
+    cmpm_AgentDef batch[3];
+    cmpm_AgentId ids[3];
+    int32_t before = 0, after = 0, k;
+    CHECK(cmpm_World_GetAgentCount(w, &before) == CMPM_OK);
+    for (k = 0; k < 3; ++k) {
+      batch[k] = cmpm_DefaultAgentDef();
+      batch[k].x = 2 + 0.6 * k;
+      batch[k].y = 2;
+      batch[k].target = "door";
+    }
+    batch[2].x = 8.1; /* inside the wall */
+    batch[2].y = 1.0;
+    CHECK_FAILS(cmpm_World_AddAgents(w, batch, 3, ids), CMPM_ERROR_INVALID_ARGUMENT, "agent 2 of 3");
+    CHECK(cmpm_World_GetAgentCount(w, &after) == CMPM_OK && after == before);
+    CHECK(ids[0].value == 0 && ids[1].value == 0);
+    batch[2].x = 3.2;
+    batch[2].y = 2;
+    batch[1].target = "nowhere";
+    CHECK_FAILS(cmpm_World_AddAgents(w, batch, 3, ids), CMPM_ERROR_INVALID_ARGUMENT, "agent 1 of 3");
+    batch[1].target = "door";
+    CHECK(cmpm_World_AddAgents(w, batch, 3, ids) == CMPM_OK);
+    CHECK(cmpm_World_GetAgentCount(w, &after) == CMPM_OK && after == before + 3);
+    CHECK(cmpm_World_GetAgentState(w, ids[2], &x, &y, &vx, &vy) == CMPM_OK && x == 3.2 && y == 2);
+    CHECK(cmpm_World_AddAgents(w, NULL, 0, NULL) == CMPM_OK);
+    CHECK_FAILS(cmpm_World_AddAgents(w, batch, -1, ids), CMPM_ERROR_INVALID_ARGUMENT, "count must be >= 0");
+    CHECK_FAILS(cmpm_World_AddAgents(w, NULL, 2, ids), CMPM_ERROR_INVALID_ARGUMENT, "defs");
+    for (k = 0; k < 3; ++k) CHECK(cmpm_World_RemoveAgent(w, ids[k]) == CMPM_OK);
+  }
+
   CHECK(cmpm_World_GetParameter(w, "E", &e) == CMPM_OK);
   CHECK(e == 20);
   CHECK(cmpm_World_SetParameter(w, "E", 35) == CMPM_OK);

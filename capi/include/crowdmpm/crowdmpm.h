@@ -176,9 +176,15 @@ CMPM_API cmpm_Status cmpm_World_GetField(cmpm_WorldId world, int32_t field, doub
                                          int32_t* out_written);
 
 /* Agents. People added between two steps are one batch: each call recomputes the reference
- * volumes (the density-referenced J) of the whole batch, so a call costs O(agents); populate a
- * large crowd through the scenario's groups rather than tens of thousands of calls. */
+ * volumes (the density-referenced J) of the whole batch, so a call costs O(agents); add many
+ * people with cmpm_World_AddAgents (or through the scenario's groups). */
 CMPM_API cmpm_Status cmpm_World_AddAgent(cmpm_WorldId world, const cmpm_AgentDef* def, cmpm_AgentId* out_agent);
+/* Adds count agents in one call and one reference-volume pass: the same state as count calls of
+ * cmpm_World_AddAgent. Every definition is checked before any agent is added: if one is refused,
+ * none is, and the message names it ("agent 3 of 10: ..."). out_agents (count entries) receives
+ * the new ids in order (0 on failure). count 0 adds nothing (defs and out_agents may be null). */
+CMPM_API cmpm_Status cmpm_World_AddAgents(cmpm_WorldId world, const cmpm_AgentDef* defs, int32_t count,
+                                          cmpm_AgentId* out_agents);
 CMPM_API cmpm_Status cmpm_World_RemoveAgent(cmpm_WorldId world, cmpm_AgentId agent);
 CMPM_API cmpm_Status cmpm_World_SetAgentTarget(cmpm_WorldId world, cmpm_AgentId agent, const char* target);
 CMPM_API cmpm_Status cmpm_World_GetAgentState(cmpm_WorldId world, cmpm_AgentId agent, double* out_x, double* out_y,
