@@ -2,6 +2,7 @@
 // world handles (live, destroyed, null or forged), with buffers of exactly the capacity passed
 // (so that a write past it is caught by AddressSanitizer) and arguments from the input bytes.
 // Every call must return one of the documented statuses.
+#include <algorithm>
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
@@ -138,19 +139,25 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
         if (s == CMPM_OK && (written < 0 || written > cap)) __builtin_trap();
         break;
       }
-      case 10: {
-        cmpm_AgentDef a = cmpm_DefaultAgentDef();
-        a.x = in.number();
-        a.y = in.number();
-        a.vx = in.u8() % 4 == 0 ? in.number() : 0;
-        const uint8_t k = in.u8();
-        a.target = k % 8 == 7 ? nullptr : kTargets[k % 7];
-        a.group = static_cast<int32_t>(in.u8() % 4) - 1;
-        if (k & 0x80) a.desired_speed = in.number();
-        if (k & 0x40) a.body_radius = in.number();
-        cmpm_AgentId id{0};
-        s = cmpm_World_AddAgent(w, &a, &id);
-        if (s == CMPM_OK) agents.push_back(id.value);
+      case 10: {  // one agent, or a batch of 0-3 (cmpm_World_AddAgents; a negative count now and then)
+        const uint8_t how = in.u8();
+        const int32_t count = how % 2 ? static_cast<int32_t>(how / 2 % 5) - 1 : 1;
+        std::vector<cmpm_AgentDef> defs(static_cast<size_t>(std::max(count, 1)));
+        for (cmpm_AgentDef& a : defs) {
+          a = cmpm_DefaultAgentDef();
+          a.x = in.number();
+          a.y = in.number();
+          a.vx = in.u8() % 4 == 0 ? in.number() : 0;
+          const uint8_t k = in.u8();
+          a.target = k % 8 == 7 ? nullptr : kTargets[k % 7];
+          a.group = static_cast<int32_t>(in.u8() % 4) - 1;
+          if (k & 0x80) a.desired_speed = in.number();
+          if (k & 0x40) a.body_radius = in.number();
+        }
+        std::vector<cmpm_AgentId> ids(defs.size(), cmpm_AgentId{0});
+        s = how % 2 ? cmpm_World_AddAgents(w, defs.data(), count, ids.data()) : cmpm_World_AddAgent(w, defs.data(), ids.data());
+        if (s == CMPM_OK)
+          for (int32_t k = 0; k < count; ++k) agents.push_back(ids[static_cast<size_t>(k)].value);
         break;
       }
       case 11:
