@@ -131,13 +131,7 @@ class World {
 
   // Adds an agent walking to `target` (an exit or goal id, or "nearest_exit"); returns its id.
   long long add_agent(double x, double y, const std::string& target, double vx = 0, double vy = 0, double desired_speed = 1.3) {
-    cmpm_AgentDef d = cmpm_DefaultAgentDef();
-    d.x = x;
-    d.y = y;
-    d.vx = vx;
-    d.vy = vy;
-    d.desired_speed = desired_speed;
-    d.target = target.c_str();
+    const cmpm_AgentDef d = agent_def(x, y, target, vx, vy, desired_speed);
     cmpm_AgentId a;
     check(cmpm_World_AddAgent(id_, &d, &a));
     return static_cast<long long>(a.value);
@@ -153,15 +147,11 @@ class World {
                                   "), got " + std::to_string(vxy.size()));
     const size_t n = xy.size() / 2;
     if (n > static_cast<size_t>(INT32_MAX)) throw std::invalid_argument("add_agents: too many agents in one call");
-    std::vector<cmpm_AgentDef> defs(n, cmpm_DefaultAgentDef());
-    for (size_t k = 0; k < n; ++k) {
-      defs[k].x = xy[2 * k];
-      defs[k].y = xy[2 * k + 1];
-      defs[k].vx = vxy.empty() ? 0 : vxy[2 * k];
-      defs[k].vy = vxy.empty() ? 0 : vxy[2 * k + 1];
-      defs[k].desired_speed = desired_speed;
-      defs[k].target = target.c_str();
-    }
+    std::vector<cmpm_AgentDef> defs;
+    defs.reserve(n);
+    for (size_t k = 0; k < n; ++k)
+      defs.push_back(agent_def(xy[2 * k], xy[2 * k + 1], target, vxy.empty() ? 0 : vxy[2 * k], vxy.empty() ? 0 : vxy[2 * k + 1],
+                               desired_speed));
     std::vector<cmpm_AgentId> ids(n);
     check(cmpm_World_AddAgents(id_, defs.data(), static_cast<int32_t>(n), ids.data()));
     std::vector<long long> out(n);
@@ -189,6 +179,17 @@ class World {
     for (char c : s)
       if (c != ' ' && c != '\n' && c != '\t' && c != '\r') return c == '{';
     return false;
+  }
+  // The definition of an agent walking to `target` (its c_str stays owned by the caller).
+  static cmpm_AgentDef agent_def(double x, double y, const std::string& target, double vx, double vy, double desired_speed) {
+    cmpm_AgentDef d = cmpm_DefaultAgentDef();
+    d.x = x;
+    d.y = y;
+    d.vx = vx;
+    d.vy = vy;
+    d.desired_speed = desired_speed;
+    d.target = target.c_str();
+    return d;
   }
   // A bulk read sized from the agent count. Another thread may step the world between the count
   // and the read (the C ABI serialises calls, not pairs of calls): on "buffer too small" it

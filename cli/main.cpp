@@ -259,7 +259,8 @@ const char* kFlowHelp =
     "  --sample-stride N  pixels between flow samples (default 2)\n"
     "  --min-speed V      m/s below which a pixel counts as still (default 0.05)\n"
     "  --glitch-ratio R   a field whose RMS speed is R times that of the 0.5 s before and after\n"
-    "                     it is a camera glitch (jump, cut), cleared and listed (default 2; 0: off)\n"
+    "                     it, over a quarter of the view or more, is a camera glitch (jump, cut):\n"
+    "                     cleared and listed (default 2; 0: off)\n"
     "  --quiet            no progress line\n";
 
 const char* kRenderHelp =

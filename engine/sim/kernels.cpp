@@ -171,9 +171,8 @@ void kernel_drive(const StepInputs& in, World& w, ThreadPool& pool) {
 Headway headway_point(const NeighbourGrid& nb, const World& w, size_t p, const Vec2& e, double width, double look) {
   Headway h;
   const Vec2 xp = w.x[p];
-  // Nobody further along than T u_p + r_p + r_q limits p: the strip searched ends there.
-  const double widest = w.radius[p] + nb.max_radius;
-  nb.for_each_candidate_ahead(p, xp, e, look + widest, width * widest, [&](size_t q) {
+  // Nobody further along than T u_p + r_p + r_q limits p: the search ends there.
+  nb.for_each_candidate_ahead(p, xp, w.radius[p], e, look, width, [&](size_t q) {
     const Vec2 r = w.x[q] - xp;
     const double along = r.dot(e), side = r.x() * e.y() - r.y() * e.x();
     const double bodies = w.radius[p] + w.radius[q];
@@ -195,13 +194,6 @@ Headway headway_point(const NeighbourGrid& nb, const World& w, size_t p, const V
     }
   });
   return h;
-}
-
-double headway_reach(const Model& m, double max_radius, double max_free_speed) {
-  if (!(m.params.time_gap > 0)) return 0;
-  // A person ahead limits the speed while gap < T u: centres up to 2 r + T u ahead and 2 r aside.
-  const double along = 2 * max_radius + m.params.time_gap * max_free_speed, side = 2 * max_radius;
-  return std::sqrt(along * along + side * side);
 }
 
 void kernel_headway(const StepInputs& in, const NeighbourGrid& nb, World& w, ThreadPool& pool) {

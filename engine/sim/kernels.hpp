@@ -44,11 +44,8 @@ struct NeighbourGrid {
   double h = 1;
   double range = 0;  // pair interaction reach the cells were sized for
   int span = 1;      // cells searched on each side for a pair: ceil(range / h)
-  // Cells searched on each side for the headway, which looks further ahead than any pair
-  // reaches (2 r + T u), and the largest body radius: set by the simulation for its agents
-  // (Simulation::size_headway_span). The cells stay sized for the pairs, so the traction's loop
-  // stays short, and the headway visits only the cells its lane crosses.
-  int ahead_span = 1;
+  // The largest body radius (set with the cells, Simulation::size_neighbour_cells): how far
+  // aside of p's lane a person ahead may stand (for_each_candidate_ahead).
   double max_radius = 0;
   int nx = 0, ny = 0;
   std::vector<int> start, order, cell, cursor;
@@ -58,51 +55,45 @@ struct NeighbourGrid {
   // statistics share this one loop.
   template <class F>
   void for_each_candidate(size_t p, F&& f) const {
-    scan(p, span, f);
+    const int c0 = cell[p], ci = c0 % nx, cj = c0 / nx;
+    for (int dj = -span; dj <= span; ++dj)
+      for (int di = -span; di <= span; ++di) {
+        const int i = ci + di, j = cj + dj;
+        if (i < 0 || j < 0 || i >= nx || j >= ny) continue;
+        visit_cell(j * nx + i, p, f);
+      }
   }
-  // The candidates that may stand in p's lane ahead (headway_point): those in the cells within
-  // `ahead_span` of p's that a strip from x along e, `length` long and `half_width` to each side,
-  // may reach: the cells of the strip's bounding box, less those whose circumscribed circle
-  // misses the strip (the edge cells, which hold clamped particles, are always kept). In the
-  // order of for_each_candidate.
+  // The candidates that may stand in the lane ahead of p (at x, radius r, heading e) within
+  // `look` m of free distance (headway_point): a strip `look + r + max_radius` long and
+  // `width (r + max_radius)` to each side. Visits the cells of the strip's bounding box, less
+  // those whose circumscribed circle misses the strip (the edge cells, which hold clamped
+  // particles, are always kept), in the order of for_each_candidate. The strip, not the cell
+  // size, bounds the search: the cells stay sized for the pairs.
   template <class F>
-  void for_each_candidate_ahead(size_t p, const Vec2& x, const Vec2& e, double length, double half_width, F&& f) const {
-    const int c0 = cell[p], ci = c0 % nx, cj = c0 / nx, reach = std::max(span, ahead_span);
-    const Vec2 n(-e.y(), e.x()), tip = x + length * e;
-    const Vec2 lo = x.cwiseMin(tip) - half_width * n.cwiseAbs(), hi = x.cwiseMax(tip) + half_width * n.cwiseAbs();
-    auto index = [&](double v, double o) { return static_cast<int>(std::floor((v - o) / h)); };
-    const int i0 = std::max({0, ci - reach, std::min(nx - 1, index(lo.x(), origin.x()))});
-    const int i1 = std::min({nx - 1, ci + reach, std::max(0, index(hi.x(), origin.x()))});
-    const int j0 = std::max({0, cj - reach, std::min(ny - 1, index(lo.y(), origin.y()))});
-    const int j1 = std::min({ny - 1, cj + reach, std::max(0, index(hi.y(), origin.y()))});
+  void for_each_candidate_ahead(size_t p, const Vec2& x, double r, const Vec2& e, double look, double width, F&& f) const {
+    const double length = look + r + max_radius, half_width = width * (r + max_radius);
+    const Vec2 tip = x + length * e, side_extent = half_width * Vec2(e.y(), e.x()).cwiseAbs();
+    const Vec2 lo = x.cwiseMin(tip) - side_extent, hi = x.cwiseMax(tip) + side_extent;
+    auto index = [&](double v, double o, int n) { return std::clamp(static_cast<int>(std::floor((v - o) / h)), 0, n - 1); };
+    const int i0 = index(lo.x(), origin.x(), nx), i1 = index(hi.x(), origin.x(), nx);
+    const int j0 = index(lo.y(), origin.y(), ny), j1 = index(hi.y(), origin.y(), ny);
     const double rho = 0.7072 * h;
     for (int j = j0; j <= j1; ++j)
       for (int i = i0; i <= i1; ++i) {
         if (i > 0 && j > 0 && i < nx - 1 && j < ny - 1) {
-          const Vec2 r = origin + h * Vec2(i + 0.5, j + 0.5) - x;
-          const double along = r.dot(e), side = r.x() * e.y() - r.y() * e.x();
+          const Vec2 c = origin + h * Vec2(i + 0.5, j + 0.5) - x;
+          const double along = c.dot(e), side = c.x() * e.y() - c.y() * e.x();
           if (along < -rho || along > length + rho || std::abs(side) > half_width + rho) continue;
         }
-        const int k = j * nx + i;
-        for (int s = start[static_cast<size_t>(k)]; s < start[static_cast<size_t>(k) + 1]; ++s) {
-          const size_t q = static_cast<size_t>(order[static_cast<size_t>(s)]);
-          if (q != p) f(q);
-        }
+        visit_cell(j * nx + i, p, f);
       }
   }
   template <class F>
-  void scan(size_t p, int reach_cells, F&& f) const {
-    const int c0 = cell[p], ci = c0 % nx, cj = c0 / nx;
-    for (int dj = -reach_cells; dj <= reach_cells; ++dj)
-      for (int di = -reach_cells; di <= reach_cells; ++di) {
-        const int i = ci + di, j = cj + dj;
-        if (i < 0 || j < 0 || i >= nx || j >= ny) continue;
-        const int k = j * nx + i;
-        for (int s = start[static_cast<size_t>(k)]; s < start[static_cast<size_t>(k) + 1]; ++s) {
-          const size_t q = static_cast<size_t>(order[static_cast<size_t>(s)]);
-          if (q != p) f(q);
-        }
-      }
+  void visit_cell(int k, size_t p, F&& f) const {
+    for (int s = start[static_cast<size_t>(k)]; s < start[static_cast<size_t>(k) + 1]; ++s) {
+      const size_t q = static_cast<size_t>(order[static_cast<size_t>(s)]);
+      if (q != p) f(q);
+    }
   }
   void build(const World& w, ThreadPool& pool);
 };
@@ -152,9 +143,6 @@ struct Headway {
 };
 // `look`: the free distance T u_p beyond which nobody ahead limits p's speed (the search stops there).
 Headway headway_point(const NeighbourGrid& nb, const World& w, size_t p, const Vec2& e, double width, double look);
-// Reach of the neighbour lists the headway needs for bodies up to max_radius and free speeds up
-// to max_speed (0 when the adaptation is off).
-double headway_reach(const Model& m, double max_radius, double max_free_speed);
 void kernel_headway(const StepInputs& in, const NeighbourGrid& nb, World& w, ThreadPool& pool);
 // How far beyond body contact (r_p + r_q) a pair interacts: the comfort distance c for the
 // continuum materials' pair traction; for the social force, where the exponential repulsion

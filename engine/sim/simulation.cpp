@@ -240,7 +240,6 @@ std::vector<EntityId> Simulation::add_agents(const std::vector<AgentDef>& defs) 
     max_v0_ = std::max(max_v0_, def.desired_speed);
   }
   if (neighbour_reach() > neighbours_.range) init_neighbours(neighbour_reach());
-  size_headway_span();
   std::vector<EntityId> ids;
   ids.reserve(defs.size());
   for (const AgentDef& def : defs) ids.push_back(world_.add(with_entry_heading(def)));
@@ -404,15 +403,9 @@ void Simulation::spawn_sources() {
 }
 
 // A pair interacts up to r_p + r_q + c_p (or the social force's margin) over the agents added so
-// far: the cells are sized for it. The headway looks further ahead and searches more of them
-// (size_headway_span).
+// far: the cells are sized for it. The headway looks further ahead along its lane only
+// (NeighbourGrid::for_each_candidate_ahead).
 double Simulation::neighbour_reach() const { return 2 * max_radius_ + interaction_margin(model_, max_comfort_); }
-
-void Simulation::size_headway_span() {
-  const double ahead = headway_reach(model_, max_radius_, model_.params.v0_scale * max_v0_);
-  neighbours_.ahead_span = std::max(neighbours_.span, static_cast<int>(std::ceil(ahead / neighbours_.h - 1e-12)));
-  neighbours_.max_radius = max_radius_;
-}
 
 void Simulation::init_neighbours(double reach) {
   // The social force keeps a step's neighbour lists through its substeps: pairs may close by
@@ -426,7 +419,7 @@ void Simulation::size_neighbour_cells(double cell_reach) {
   // Bound the number of cells (huge venues): larger cells cost time, not correctness.
   const Vec2 ext = scenario_.geo.hi - scenario_.geo.lo;
   neighbours_.init(scenario_.geo, cell_reach, std::sqrt(ext.x() * ext.y() / 2e7));
-  size_headway_span();
+  neighbours_.max_radius = max_radius_;  // a larger body widens the reach, so it passes here
 }
 
 void Simulation::prepare_derived() {
@@ -645,11 +638,9 @@ PairStats Simulation::pair_stats() {
       ++st.candidates;
       if ((w.x[q] - w.x[p]).norm() < w.radius[p] + w.radius[q] + w.comfort[p]) ++st.pairs;
     });
-    if (model_.is_continuum() && model_.params.time_gap > 0 && w.free_speed[p] > 0) {
-      const double widest = w.radius[p] + nb.max_radius;
-      nb.for_each_candidate_ahead(p, w.x[p], w.heading[p], model_.params.time_gap * w.free_speed[p] + widest,
-                                  model_.params.headway_width * widest, [&](size_t) { ++st.ahead; });
-    }
+    if (model_.is_continuum() && model_.params.time_gap > 0 && w.free_speed[p] > 0)
+      nb.for_each_candidate_ahead(p, w.x[p], w.radius[p], w.heading[p], model_.params.time_gap * w.free_speed[p],
+                                  model_.params.headway_width, [&](size_t) { ++st.ahead; });
   }
   return st;
 }

@@ -139,7 +139,6 @@ class Simulation {
   void init_neighbours(double reach);
   void size_neighbour_cells(double cell_reach);  // the cell lists for exactly this reach
   double neighbour_reach() const;
-  void size_headway_span();  // the cells the headway searches, for the agents' longest look ahead
   AgentDef agent_template(const GroupDef& g, int group_index) const;
   AgentDef with_entry_heading(AgentDef d) const;  // the heading behaviour's direction at entry
   void check_agent(const AgentDef& def) const;     // throws Error naming what add_agent refuses
