@@ -730,7 +730,8 @@ int cmd_train_video(const Args& a) {
   o.grid_min_mass = vo.min_mass;  // an observed node the particles left costs as in Err_vel
   std::vector<TrainWindow> train, val;
   const double fps = d.fields.flow.info.fps;
-  make_video_windows(d.venue, d.fields.flow.fields, fps, d.split, vo, o.validation_fraction, train, val, d.fields.flow.glitches);
+  make_video_windows(d.venue, d.fields.flow.fields, fps, d.split, vo, o.validation_fraction, train, val, d.fields.flow.glitches,
+                     d.fields.flow.covered);
   const Model start = !a.model.empty() ? Model::load(a.model, a.input) : d.venue.model_or_default();
   if (!a.quiet)
     std::printf("training %s material on %zu clips of %g s (%zu validation) from fields 0..%zu of %zu; %g persons/m2 sampled\n",

@@ -337,8 +337,10 @@ Model gradient_model(double time_gap = 0) {
 namespace {
 // Worst relative error of the window gradient against five-point differences, over every
 // parameter group (E, gamma, tension_scale, tau, v0_scale, comfort_distance, alignment_time,
-// every third network weight) and the initial x and v of every third agent.
-double window_gradient_error(int steps, double time_gap = 0) {
+// every third network weight) and the initial x and v of every third agent. entering: two people
+// walk in from the left after steps 3 and 7 (WindowGradient::run's after_step), among the crowd
+// from then on; their entry state is data (J set to the crowd's, as a constant).
+double window_gradient_error(int steps, double time_gap = 0, bool entering = false) {
   const ScenarioDef s = ScenarioDef::parse_text(kGradientScene);
   Rng rng(99);
   std::vector<std::vector<Vec2>> target(steps + 1);
@@ -351,15 +353,30 @@ double window_gradient_error(int steps, double time_gap = 0) {
     for (auto& J : sim->world().J) J = 0.85;
     return sim;
   };
+  int entered = 0;
+  auto enter = [&](Simulation& sim) {
+    const long k = sim.steps();
+    if (!entering || (k != 3 && k != 7)) return;
+    AgentDef a;
+    a.position = k == 3 ? Vec2(0.75, 1.6) : Vec2(0.7, 2.7);
+    a.velocity = Vec2(0.9, k == 3 ? 0.1 : -0.1);
+    a.desired_speed = 1.1;
+    a.comfort_distance = sim.model().params.comfort_distance;
+    a.behaviour = sim.behaviour_of_group(0);
+    sim.add_agent(a);
+    sim.world().J.back() = 0.85;
+    ++entered;
+  };
   {
     auto sim = make_sim(gradient_model(time_gap));
     for (int k = 1; k <= steps; ++k)
-      for (size_t p = 0; p < sim->world().size(); ++p) target[static_cast<size_t>(k)].push_back(Vec2(4 * rng.uniform(), 4 * rng.uniform()));
+      for (size_t p = 0; p < sim->world().size() + 2; ++p) target[static_cast<size_t>(k)].push_back(Vec2(4 * rng.uniform(), 4 * rng.uniform()));
   }
   auto loss_of = [&](Simulation& sim) {
     double L = 0;
     for (int k = 1; k <= steps; ++k) {
       sim.step();
+      enter(sim);
       for (size_t p = 0; p < sim.world().size(); ++p) L += (sim.world().x[p] - target[static_cast<size_t>(k)][p]).squaredNorm();
     }
     return L;
@@ -372,7 +389,8 @@ double window_gradient_error(int steps, double time_gap = 0) {
   ModelGradient g = wg.run(*sim, steps, [&](int k, const World& w, std::vector<Vec2>& d, std::vector<Vec2>&) {
     for (size_t p = 0; p < w.size(); ++p) d[p] = 2 * (w.x[p] - target[static_cast<size_t>(k)][p]);
     return true;
-  });
+  }, entering ? std::function<void(Simulation&)>(enter) : nullptr);
+  if (entering) REQUIRE(entered == 2);
   double worst = 0;
   int count = 0;
   auto compare = [&](const char* what, double analytic, double fd) {
@@ -433,6 +451,38 @@ TEST_CASE("one-step window gradient matches central differences for every parame
 
 TEST_CASE("12-step window gradient matches central differences for every parameter group and the initial state", "[gradients]") {
   CHECK(window_gradient_error(12) < 1e-5);
+}
+
+TEST_CASE("12-step window gradient with people entering during the window matches central differences", "[gradients]") {
+  // Two people are appended after steps 3 and 7 and walk into the crowd: the steps after see
+  // them (drive, traction, transfer), their adjoints end where they entered.
+  CHECK(window_gradient_error(12, 0.8, true) < 3e-5);
+}
+
+TEST_CASE("a gradient window with checkpoints or an exit inside it says why it cannot run", "[gradients]") {
+  const ScenarioDef s = ScenarioDef::parse_text(kGradientScene);
+  auto none = [](int, const World&, std::vector<Vec2>&, std::vector<Vec2>&) { return false; };
+  Simulation sim(s, gradient_model(), 1);
+  auto add = [](Simulation& sm) {
+    AgentDef a;
+    a.position = Vec2(0.7, 2.0);
+    a.behaviour = sm.behaviour_of_group(0);
+    sm.add_agent(a);
+  };
+  REQUIRE_THROWS_WITH(WindowGradient(5).run(sim, 20, none, add), Catch::Contains("cannot use checkpoints"));
+  // Without the after_step hook, an agent added by hand during a checkpointed window is caught too.
+  int k = 0;
+  REQUIRE_THROWS_WITH(WindowGradient(5).run(sim, 20, [&](int, const World&, std::vector<Vec2>&, std::vector<Vec2>&) {
+                        if (++k == 2) add(sim);
+                        return false;
+                      }),
+                      Catch::Contains("the set of agents must stay fixed"));
+  // An agent leaving (here removed by hand) is an error with or without checkpoints.
+  Simulation sim2(s, gradient_model(), 1);
+  REQUIRE_THROWS_WITH(WindowGradient().run(sim2, 10, none, [](Simulation& sm) {
+                        if (sm.steps() == 4) sm.world().remove_at(3);
+                      }),
+                      Catch::Contains("an agent left the world during the gradient window (step 4)"));
 }
 
 TEST_CASE("12-step window gradient with the headway speed adaptation matches central differences", "[gradients]") {

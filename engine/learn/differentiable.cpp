@@ -1,5 +1,7 @@
 #include "engine/learn/differentiable.hpp"
 
+#include <algorithm>
+
 namespace crowdmpm {
 
 namespace {
@@ -146,12 +148,12 @@ void headway_adjoint(const StepInputs& in, const NeighbourGrid& nb, const World&
 }
 }  // namespace
 
-ModelGradient WindowGradient::run(Simulation& sim, int steps, const StateLossGrad& loss_grad) {
+ModelGradient WindowGradient::run(Simulation& sim, int steps, const StateLossGrad& loss_grad,
+                                  const std::function<void(Simulation&)>& after_step) {
   const Model& model = sim.model();
   if (model.material == MaterialKind::Elastic || !model.is_continuum())
     throw Error(std::string("gradients through the simulator cover the crowd and fluid materials, not ") + material_name(model.material));
-  const size_t n = sim.world().size();
-  const std::vector<EntityId> ids = sim.world().id;
+  std::vector<EntityId> ids = sim.world().id;  // the agents so far, in dense order
   // Routes under congestion stay those of the window's start (no adjoint of the route choice;
   // the steps run again from checkpoints must see the same routes).
   struct HeldRoutes {
@@ -165,17 +167,38 @@ ModelGradient WindowGradient::run(Simulation& sim, int steps, const StateLossGra
   // forward again (one more forward pass in all) to get its states back.
   const int K = checkpoint_every_ > 0 && checkpoint_every_ < steps ? checkpoint_every_ : std::max(steps, 1);
   const bool checkpointing = K < steps;
+  if (checkpointing && after_step)
+    throw Error("a gradient window that adds agents after its steps keeps every state: it cannot use checkpoints (" +
+                std::to_string(steps) + " steps, a checkpoint every " + std::to_string(K) + ")");
+  // Agents may enter (appended by a source or after_step; with checkpoints not even that) but
+  // never leave: the backward pass drops the entered ones' adjoints where they appear.
+  auto check_agents = [&](int step, bool again) {
+    const World& w = sim.world();
+    const char* when = again ? " while the gradient window was run again from a checkpoint" : " during the gradient window";
+    if (w.size() < ids.size() || !std::equal(ids.begin(), ids.end(), w.id.begin()))
+      throw Error(std::string("an agent left the world") + when + " (step " + std::to_string(step) +
+                  "); gradients need every agent to stay (exits inside a window are not covered)");
+    if (checkpointing && w.size() != ids.size())
+      throw Error(std::string("an agent entered the world") + when + " (step " + std::to_string(step) +
+                  "); with gradient checkpoints the set of agents must stay fixed");
+    ids = w.id;
+  };
   std::vector<Stored> states, checkpoints;
   std::vector<Simulation::Clock> checkpoint_clocks;
   std::vector<std::vector<Vec2>> loss_x(static_cast<size_t>(steps) + 1), loss_v(static_cast<size_t>(steps) + 1);
-  auto step_and_record = [&](std::vector<Stored>& into) {
+  auto step_and_record = [&](std::vector<Stored>& into, int step, bool again) {
     into.push_back(store(sim.world()));
     sim.step();
-    // The drive and traction of this step are still in the world's arrays (agents fixed).
-    into.back().accel = sim.world().accel;
-    into.back().force = sim.world().pair_force;
-    into.back().heading_used = sim.world().heading;
-    into.back().free_speed = sim.world().free_speed;
+    check_agents(step, again);
+    // The drive and traction of this step are still in the world's arrays, for the step's own
+    // agents (those a source added at its end come after them).
+    const World& w = sim.world();
+    Stored& st = into.back();
+    const auto m = static_cast<long>(st.x.size());
+    st.accel.assign(w.accel.begin(), w.accel.begin() + m);
+    st.force.assign(w.pair_force.begin(), w.pair_force.begin() + m);
+    st.heading_used.assign(w.heading.begin(), w.heading.begin() + m);
+    st.free_speed.assign(w.free_speed.begin(), w.free_speed.begin() + m);
   };
   std::vector<double> step_time;  // the clock at the start of each step (time-dependent terms)
   peak_stored_steps_ = 0;
@@ -188,12 +211,15 @@ ModelGradient WindowGradient::run(Simulation& sim, int steps, const StateLossGra
         checkpoint_clocks.push_back(sim.clock());
       }
       sim.step();
+      check_agents(k + 1, false);
     } else {
-      step_and_record(states);
+      step_and_record(states, k + 1, false);
     }
-    if (sim.world().size() != n || sim.world().id != ids)
-      throw Error("an agent entered or left the world during the gradient window (step " + std::to_string(k + 1) +
-                  "); gradients need a fixed set of agents");
+    if (after_step) {
+      after_step(sim);
+      check_agents(k + 1, false);
+    }
+    const size_t n = sim.world().size();
     std::vector<Vec2> gx(n, Vec2::Zero()), gv(n, Vec2::Zero());
     if (loss_grad(k + 1, sim.world(), gx, gv)) {
       loss_x[static_cast<size_t>(k) + 1] = std::move(gx);
@@ -205,9 +231,10 @@ ModelGradient WindowGradient::run(Simulation& sim, int steps, const StateLossGra
   ModelGradient out;
   out.network.assign(model.traction.parameter_count(), 0);
   for (const Term& t : sim.scenario().terms) out.terms.emplace_back(t.params.size(), 0.0);
-  std::vector<Vec2> xb(n, Vec2::Zero()), vb(n, Vec2::Zero());
-  std::vector<Mat2> Cb(n, Mat2::Zero());
-  std::vector<double> Jb(n, 0);
+  // The adjoint of the state after the step being undone: sized to its agents.
+  std::vector<Vec2> xb(ids.size(), Vec2::Zero()), vb(ids.size(), Vec2::Zero());
+  std::vector<Mat2> Cb(ids.size(), Mat2::Zero());
+  std::vector<double> Jb(ids.size(), 0);
   // A scratch world with the agents' fixed components, and the simulation's inputs.
   World w = sim.world();
   const ScenarioDef& sc = sim.scenario();
@@ -230,20 +257,22 @@ ModelGradient WindowGradient::run(Simulation& sim, int steps, const StateLossGra
       restore_state(sw, checkpoints[static_cast<size_t>(seg)]);
       sim.set_clock(checkpoint_clocks[static_cast<size_t>(seg)]);
       states.clear();
-      for (int j = seg * K; j <= k; ++j) {
-        step_and_record(states);
-        if (sw.size() != n || sw.id != ids)
-          throw Error("an agent entered or left the world while the gradient window was run again from a checkpoint (step " +
-                      std::to_string(j + 1) + ")");
-      }
+      for (int j = seg * K; j <= k; ++j) step_and_record(states, j + 1, true);
     }
     peak_stored_steps_ = std::max(peak_stored_steps_, states.size() + checkpoints.size());
     const Stored& st = states[static_cast<size_t>(checkpointing ? k % K : k)];
     if (!loss_x[static_cast<size_t>(k) + 1].empty())
-      for (size_t p = 0; p < n; ++p) {
+      for (size_t p = 0; p < xb.size(); ++p) {
         xb[p] += loss_x[static_cast<size_t>(k) + 1][p];
         vb[p] += loss_v[static_cast<size_t>(k) + 1][p];
       }
+    // The agents that entered during step k (or after it) end here: their entry state is data.
+    const size_t n = st.x.size();
+    xb.resize(n);
+    vb.resize(n);
+    Cb.resize(n);
+    Jb.resize(n);
+    while (w.size() > n) w.remove_at(w.size() - 1);
     // Step k's state with its stored drive and traction; neighbour lists are rebuilt, the
     // transfer adjoint recomputes the grid.
     restore(w, st);

@@ -269,11 +269,16 @@ double window_loss(const ScenarioDef& windowed, const TrainWindow& tw, const Mod
       return weight * l;
     };
   }
+  // People walking in across the view's edge (video): appended after each step, scored with the
+  // others by the field loss; their entry state is data (no gradient flows to it).
+  if (!tw.inflow.points.empty() && tw.fields.empty()) throw Error("an inflow needs a window of observed fields");
+  InflowRun inflow(tw.inflow, o.desired_speed);
   double loss = 0;
   size_t next = 0;
   if (!grad) {
     for (int k = 1; k <= steps; ++k) {
       sim.step();
+      inflow.after_step(sim);
       if (target.steps[next] == k) loss += term(next++, sim.world(), nullptr, nullptr);
     }
     return loss;
@@ -281,12 +286,14 @@ double window_loss(const ScenarioDef& windowed, const TrainWindow& tw, const Mod
   int every = o.checkpoint_every;
   if (every <= 0 && static_cast<double>(steps) * static_cast<double>(n) * static_cast<double>(WindowGradient().stored_bytes_per_agent_step()) > o.max_stored_bytes)
     every = static_cast<int>(std::ceil(std::sqrt(static_cast<double>(steps))));
+  std::function<void(Simulation&)> after_step;
+  if (!tw.inflow.points.empty()) after_step = [&](Simulation& s) { inflow.after_step(s); };
   WindowGradient wg(every);
   *grad = wg.run(sim, steps, [&](int k, const World& w, std::vector<Vec2>& dx, std::vector<Vec2>& dv) {
     if (next >= target.steps.size() || target.steps[next] != k) return false;
     loss += term(next++, w, &dx, &dv);
     return true;
-  });
+  }, after_step);
   return loss;
 }
 

@@ -112,6 +112,8 @@ struct TrainWindow {
   // velocity at frame k + 1 after the start, on the venue's grid; the loss is then the grid
   // velocity loss against them whatever TrainOptions::loss says.
   std::vector<GridVelocityField> fields;
+  // People walking in across the edge of the view during the window (video windows only).
+  EdgeInflow inflow;
   size_t frames() const { return fields.empty() ? seen.size() : fields.size(); }
 };
 

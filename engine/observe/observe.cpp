@@ -141,4 +141,37 @@ WindowSim start_window(const ScenarioDef& sc, const Model& model, const Observed
   return ws;
 }
 
+InflowRun::InflowRun(const EdgeInflow& inflow, DesiredSpeed desired_speed)
+    : inflow_(inflow), desired_speed_(desired_speed), due_(inflow.points.size(), 0.0) {
+  if (!inflow.points.empty() && !(inflow.density > 0)) throw Error("inflow: density must be > 0 persons/m2");
+}
+
+void InflowRun::after_step(Simulation& sim) {
+  if (inflow_.points.empty()) return;
+  const Model& m = sim.model();
+  const double dt = sim.scenario().dt;
+  const double spacing = std::sqrt(2 / (std::sqrt(3.0) * inflow_.density));  // hexagonal
+  const double walk_in = desired_speed_ == DesiredSpeed::Observed ? m.params.v0_scale : 1.0;
+  for (size_t k = 0; k < inflow_.points.size(); ++k) {
+    const EdgeInflow::Point& in = inflow_.points[k];
+    due_[k] = std::min(2.0, due_[k] + walk_in * in.rate * dt);
+    if (due_[k] < 1) continue;
+    const World& w = sim.world();
+    bool free = true;
+    for (size_t p = 0; p < w.size() && free; ++p) free = (w.x[p] - in.x).squaredNorm() >= 0.25 * spacing * spacing;
+    if (!free) continue;  // stays due until the spot clears
+    due_[k] -= 1;
+    AgentDef a;
+    a.position = in.x;
+    a.velocity = in.v;
+    a.body_radius = std::clamp(0.5 * spacing, 0.05, m.params.body_radius);
+    a.comfort_distance = m.params.comfort_distance;
+    a.desired_speed = desired_speed_ == DesiredSpeed::Scenario ? sim.draw_speed(sim.scenario().groups[0])
+                                                               : std::clamp(in.v.norm(), 0.0, std::min(12.0, m.params.max_speed));
+    a.behaviour = sim.behaviour_of_group(0);
+    a.group = 0;
+    sim.add_agent(a);
+  }
+}
+
 }  // namespace crowdmpm

@@ -61,4 +61,33 @@ struct WindowSim {
 };
 WindowSim start_window(const ScenarioDef& windowed, const Model& model, const ObservedState& s, const WindowOptions& o);
 
+// People walking into an observed region across its edge: a camera sees only part of a crowd,
+// and during a prediction (or a training clip) the people outside its view walk in. Each point
+// is a place on the region's edge where the observed flow points inward; it adds a person there
+// at `rate` persons/s (density x inward speed x the edge length it stands for), times the
+// model's v0_scale when desired speeds are the observed ones (the speed the model walks them
+// at), whenever nobody is closer than half the sampling spacing (the point stays due until the
+// spot clears, at most two people owed).
+struct EdgeInflow {
+  struct Point {
+    Vec2 x, v;    // m, m/s: where people enter, and their velocity
+    double rate;  // persons/s
+  };
+  std::vector<Point> points;
+  double density = 0;  // persons/m2 of the crowd it continues (spacing of the clear spot, body size)
+};
+
+// One simulation's inflow: after_step adds the people due after each step (agents are appended,
+// so a gradient window can run through it: WindowGradient::run's after_step).
+class InflowRun {
+ public:
+  InflowRun(const EdgeInflow& inflow, DesiredSpeed desired_speed);
+  void after_step(Simulation& sim);
+
+ private:
+  const EdgeInflow& inflow_;
+  DesiredSpeed desired_speed_;
+  std::vector<double> due_;
+};
+
 }  // namespace crowdmpm

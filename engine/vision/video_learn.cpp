@@ -67,7 +67,8 @@ GridVelocityField start_field(const std::vector<GridVelocityField>& fields, size
 
 void make_video_windows(const ScenarioDef& venue, const std::vector<GridVelocityField>& fields, double fps, size_t end,
                         const VideoLearnOptions& vo, double validation_fraction, std::vector<TrainWindow>& train,
-                        std::vector<TrainWindow>& validation, const std::vector<size_t>& glitches) {
+                        std::vector<TrainWindow>& validation, const std::vector<size_t>& glitches,
+                        const std::vector<char>& covered) {
   vo.check();
   train.clear();
   validation.clear();
@@ -87,13 +88,37 @@ void make_video_windows(const ScenarioDef& venue, const std::vector<GridVelocity
     const bool is_val = i >= n_train;
     if (!is_val && starts[i] + length > val_start) continue;
     TrainWindow w;
-    w.start = sample_particles(start_field(fields, starts[i], fps, vo), vo.density, &venue.geo);
+    const GridVelocityField sf = start_field(fields, starts[i], fps, vo);
+    w.start = sample_particles(sf, vo.density, &venue.geo);
     if (w.start.ids.empty()) continue;
+    if (vo.inflow && !covered.empty()) w.inflow = edge_inflow(sf, covered, venue.geo, vo.density);
     w.start.frame = static_cast<long>(starts[i]);
     w.framerate = fps;
     w.fields.assign(fields.begin() + static_cast<long>(starts[i]) + 1, fields.begin() + static_cast<long>(starts[i] + length) + 1);
     (is_val ? validation : train).push_back(std::move(w));
   }
+}
+
+EdgeInflow edge_inflow(const GridVelocityField& f, const std::vector<char>& covered, const Geometry& geo, double density) {
+  if (covered.size() != f.velocity.size()) throw Error("inflow: coverage mask does not match the grid");
+  EdgeInflow in;
+  in.density = density;
+  const double spacing = std::sqrt(2 / (std::sqrt(3.0) * density));
+  for (int j = 0; j < f.ny; ++j)
+    for (int i = 0; i < f.nx; ++i) {
+      const size_t n = static_cast<size_t>(j) * f.nx + i;
+      if (!covered[n] || !(f.mask[n] > 0)) continue;
+      Vec2 out_dir = Vec2::Zero();
+      for (const auto& d : {Vec2(1, 0), Vec2(-1, 0), Vec2(0, 1), Vec2(0, -1)}) {
+        const int a = i + static_cast<int>(d.x()), b = j + static_cast<int>(d.y());
+        if (a < 0 || b < 0 || a >= f.nx || b >= f.ny || !covered[static_cast<size_t>(b) * f.nx + a]) out_dir += d;
+      }
+      if (out_dir.squaredNorm() == 0) continue;
+      const double in_speed = -f.velocity[n].dot(out_dir.normalized());
+      const Vec2 x = f.origin + f.dx * Vec2(i, j);
+      if (in_speed > 0 && geo.sdf(x) >= spacing / 2) in.points.push_back(EdgeInflow::Point{x, f.velocity[n], density * in_speed * f.dx});
+    }
+  return in;
 }
 
 size_t held_out_end(size_t fields, size_t start, const std::vector<size_t>& glitches) {
@@ -148,7 +173,8 @@ std::vector<VideoPrediction> predict_video(const ScenarioDef& scenario, const st
     const size_t h = std::max<size_t>(1, static_cast<size_t>(std::lround(static_cast<double>(k) * static_cast<double>(held) / vo.horizons)));
     if (at.empty() || h > at.back()) at.push_back(h);
   }
-  const ObservedState s = sample_particles(start_field(fields, start, fps, vo), vo.density, &scenario.geo);
+  const GridVelocityField sf = start_field(fields, start, fps, vo);
+  const ObservedState s = sample_particles(sf, vo.density, &scenario.geo);
   if (s.ids.empty()) throw Error("video prediction: the field at the start of the held-out part keeps no moving node");
   std::vector<VideoPrediction> out;
   auto add = [&](const std::string& method, const std::function<GridVelocityField(size_t)>& predict) {
@@ -175,36 +201,12 @@ std::vector<VideoPrediction> predict_video(const ScenarioDef& scenario, const st
     return grid_velocity_of(x, s.v, 1, shape, vo.min_mass);
   });
   const ScenarioDef windowed = window_scenario(scenario, true);  // people leave by the exits, as they do on video
-  // Inflow nodes: seen nodes on the edge of the view where the start field flows in.
-  struct Inflow {
-    Vec2 x, v;
-    double rate, due = 0;
-  };
-  std::vector<Inflow> inflow;
-  const GridVelocityField sf = start_field(fields, start, fps, vo);
-  const double spacing = std::sqrt(2 / (std::sqrt(3.0) * vo.density));
-  if (vo.inflow)
-    for (int j = 0; j < f0.ny; ++j)
-      for (int i = 0; i < f0.nx; ++i) {
-        const size_t n = static_cast<size_t>(j) * f0.nx + i;
-        if (!covered[n] || !(sf.mask[n] > 0)) continue;
-        Vec2 out_dir = Vec2::Zero();
-        for (const auto& d : {Vec2(1, 0), Vec2(-1, 0), Vec2(0, 1), Vec2(0, -1)}) {
-          const int a = i + static_cast<int>(d.x()), b = j + static_cast<int>(d.y());
-          if (a < 0 || b < 0 || a >= f0.nx || b >= f0.ny || !covered[static_cast<size_t>(b) * f0.nx + a]) out_dir += d;
-        }
-        if (out_dir.squaredNorm() == 0) continue;
-        const double in_speed = -sf.velocity[n].dot(out_dir.normalized());
-        const Vec2 x = f0.origin + f0.dx * Vec2(i, j);
-        if (in_speed > 0 && scenario.geo.sdf(x) >= spacing / 2) inflow.push_back(Inflow{x, sf.velocity[n], vo.density * in_speed * f0.dx});
-      }
+  EdgeInflow inflow;
+  if (vo.inflow) inflow = edge_inflow(sf, covered, scenario.geo, vo.density);
   for (const Model& m : models) {
     WindowSim ws = start_window(windowed, m, s, WindowOptions{threads, vo.desired_speed});
     Simulation& sim = *ws.sim;
-    for (auto& in : inflow) in.due = 0;
-    // The inflow holds the sampling density at the edge: its rate is density x the speed people
-    // walk in at, which the model's v0_scale sets from the observed speed they are given.
-    const double walk_in = vo.desired_speed == DesiredSpeed::Observed ? m.params.v0_scale : 1.0;
+    InflowRun run(inflow, vo.desired_speed);
     std::vector<GridVelocityField> at_h;
     size_t done = 0;
     for (size_t h : at) {
@@ -212,25 +214,7 @@ std::vector<VideoPrediction> predict_video(const ScenarioDef& scenario, const st
       while (static_cast<long>(done) < target) {
         sim.step();
         ++done;
-        for (auto& in : inflow) {
-          in.due = std::min(2.0, in.due + walk_in * in.rate * windowed.dt);
-          if (in.due < 1) continue;
-          const World& w = sim.world();
-          bool free = true;
-          for (size_t p = 0; p < w.size() && free; ++p) free = (w.x[p] - in.x).squaredNorm() >= 0.25 * spacing * spacing;
-          if (!free) continue;  // stays due until the spot clears
-          in.due -= 1;
-          AgentDef a;
-          a.position = in.x;
-          a.velocity = in.v;
-          a.body_radius = std::clamp(0.5 * spacing, 0.05, m.params.body_radius);
-          a.comfort_distance = m.params.comfort_distance;
-          a.desired_speed = vo.desired_speed == DesiredSpeed::Scenario ? sim.draw_speed(windowed.groups[0])
-                                                                       : std::clamp(in.v.norm(), 0.0, std::min(12.0, m.params.max_speed));
-          a.behaviour = sim.behaviour_of_group(0);
-          a.group = 0;
-          sim.add_agent(a);
-        }
+        run.after_step(sim);
       }
       at_h.push_back(grid_velocity_of(sim.world().x, sim.world().v, 1, sim.grid(), vo.min_mass));
     }

@@ -29,10 +29,11 @@ struct VideoLearnOptions {
   // Desired speeds of the sampled particles: their observed speed (the only choice without a
   // scenario's distribution), or the scenario group's.
   DesiredSpeed desired_speed = DesiredSpeed::Observed;
-  // Prediction: the edge of the view keeps feeding the crowd as last seen. Where the start
-  // field flows into the view across its edge, particles enter at the sampling density with the
-  // velocity seen there (density x inward speed x dx persons per second per edge node), placed
-  // when the spot is free. Without it an open view empties from upstream.
+  // The edge of the view keeps feeding the crowd as last seen, in predictions and in training
+  // clips alike (edge_inflow): where a clip's start field flows into the view across its edge,
+  // particles enter at the sampling density with the velocity seen there. Without it an open
+  // view empties from upstream, and training would fit a material that holds the crowd back
+  // to make up for the people who never walked in.
   bool inflow = true;
   void check() const;
 };
@@ -48,11 +49,19 @@ ObservedState sample_particles(const GridVelocityField& field, double density, c
 // where they move, and velocity 0 where the crowd moved within vo.presence seconds but no longer does.
 GridVelocityField start_field(const std::vector<GridVelocityField>& fields, size_t start, double fps, const VideoLearnOptions& vo);
 
-// Training and validation windows from fields[0, end) (validation: the last share of the clips).
-// A clip (with the fields its start state is sampled from) never contains a camera glitch.
+// The inflow across the edge of the view that a start field implies (EdgeInflow): one point per
+// moving node next to an unseen one (`covered`: the nodes the camera sees) whose velocity points
+// out of the seen region's inward side, at density x inward speed x dx persons per second; none
+// closer than half the sampling spacing to a wall.
+EdgeInflow edge_inflow(const GridVelocityField& start, const std::vector<char>& covered, const Geometry& venue, double density);
+
+// Training and validation windows from fields[0, end) (validation: the last share of the clips),
+// each with its start field's edge inflow when vo.inflow (`covered` as in edge_inflow; empty: no
+// inflow). A clip (with the fields its start state is sampled from) never contains a camera glitch.
 void make_video_windows(const ScenarioDef& venue, const std::vector<GridVelocityField>& fields, double fps, size_t end,
                         const VideoLearnOptions& vo, double validation_fraction, std::vector<TrainWindow>& train,
-                        std::vector<TrainWindow>& validation, const std::vector<size_t>& glitches = {});
+                        std::vector<TrainWindow>& validation, const std::vector<size_t>& glitches = {},
+                        const std::vector<char>& covered = {});
 
 struct VideoHorizon {
   double seconds = 0;  // after the start of the held-out part
