@@ -322,6 +322,10 @@ const char* kGradientScene = R"({"format": "crowdmpm-scenario", "version": 1, "n
 Model gradient_model(double time_gap = 0) {
   Model m = Model::default_model();
   m.set("time_gap", time_gap);
+  // The scene's contacts were laid out for these (the default model's comfort distance is
+  // smaller): every part of the step stays active.
+  m.set("comfort_distance", 0.3);
+  m.set("tau", 0.5);
   // Route choice has no adjoint: a window holds the routes computed at its start, which depend
   // on the start (the initial-state differences would see them). Off here; held routes are
   // checked in "a gradient window holds the routes of its start".

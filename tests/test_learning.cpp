@@ -159,6 +159,9 @@ TEST_CASE("recovery: material parameters are recovered from trajectories the eng
   const ScenarioDef s = ScenarioDef::parse_text(kRecoveryScene);
   // The truth: every scalar away from the default, and a traction network that is not the default's.
   Model truth = Model::default_model();
+  // The scene's crowd (about 4-5 /m^2 against the wall) is compressed only below the default's
+  // rest density of 6; at 4 the stress law's E and gamma both act in it.
+  truth.set("rest_density", 4);
   truth.set("E", 30);
   truth.set("gamma", 1.5);
   truth.set("tension_scale", 0.3);
@@ -207,6 +210,8 @@ TEST_CASE("recovery: material parameters are recovered from trajectories the eng
 TEST_CASE("the grid velocity loss trains too: drive parameters recovered from velocity fields", "[learning]") {
   const ScenarioDef s = ScenarioDef::parse_text(kRecoveryScene);
   Model truth = Model::default_model();
+  truth.set("rest_density", 4);  // as in the recovery above
+  truth.set("comfort_distance", 0.3);
   truth.set("tau", 0.4);
   truth.set("v0_scale", 1.1);
   const std::vector<TrainWindow> train = synthetic_windows(s, truth, 4, 1.0, 21);

@@ -248,7 +248,9 @@ TEST_CASE("model version 2 starts a dense crowd compressed, version 1 at J = 1",
     "domain": {"min": [0, 0], "max": [12, 12], "cell_size": 0.5}, "time": {"dt": 0.01, "duration": 1},
     "groups": [{"spawn": {"rect": [1, 1, 11, 11]}, "density": 5, "desired_speed": 1, "behaviour": {"type": "none"}}]})";
   const ScenarioDef s = ScenarioDef::parse_text(scene);
-  Simulation v2(s, Model::default_model(), 1);
+  Model m2 = Model::default_model();
+  m2.set("rest_density", 4);  // below the crowd's 5 /m^2 (the default's 6 would leave it at rest)
+  Simulation v2(s, m2, 1);
   Simulation v1(s, Model::load(test::repo_path("scenarios/models/v1.json")), 1);
   REQUIRE(Model::default_model().version == 2);
   double inside = 0;
@@ -271,8 +273,10 @@ TEST_CASE("agents added one by one before a step get the same reference volumes 
   std::vector<Vec2> spots;  // a square lattice at 1 / 0.45^2 = 4.9 persons/m^2
   for (int j = 0; j < 12; ++j)
     for (int i = 0; i < 12; ++i) spots.emplace_back(3 + 0.45 * i, 3 + 0.45 * j);
+  Model m = Model::default_model();
+  m.set("rest_density", 4);  // below the lattice's 4.9 /m^2
   auto volumes = [&](bool reversed, bool together = false) {
-    Simulation sim(s, Model::default_model(), 1);
+    Simulation sim(s, m, 1);
     std::vector<AgentDef> defs;
     for (size_t k = 0; k < spots.size(); ++k) {
       AgentDef a;

@@ -66,6 +66,7 @@ Model Model::default_of(const std::string& kind) {
     m.material = MaterialKind::SocialForce;
     // Its wall force keeps bodies off walls (at r); the projection is only a backstop.
     m.params.shoulder_clearance = 0;
+    m.params.tau = 0.5;  // Helbing, Farkas & Vicsek (2000)
     m.params.route_congestion = 0;  // the classic model: shortest paths
   } else if (kind == "elastic") {
     m.material = MaterialKind::Elastic;
@@ -99,6 +100,8 @@ Model Model::parse(const JsonReader& r, const std::string& source) {
   if (version == 1) {  // the defaults of version 1 for parameters its files leave out
     m.params.time_gap = 0;
     m.params.rest_density = 2;
+    m.params.tau = 0.5;
+    m.params.comfort_distance = 0.3;
   }
   m.source = source;
   m.name = r.string("name", std::string());

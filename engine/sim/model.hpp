@@ -14,11 +14,11 @@ struct MaterialParams {
   double E = 20;                 // stiffness of the continuum stress
   double gamma = 1;              // exponent of P(J) = E (J^-gamma - 1)
   double tension_scale = 0;      // s_t: stress scale for J >= 1 (0: crowd scatters freely)
-  double tau = 0.5;              // relaxation time of the drive, s
+  double tau = 0.4;              // relaxation time of the drive, s (social force default: 0.5)
   double v0_scale = 1;           // multiplies every agent's desired speed
-  double comfort_distance = 0.3; // c, m (default for agents that do not set their own)
+  double comfort_distance = 0.15; // c, m (default for agents that do not set their own)
   double body_radius = 0.2;      // r_b, m (default for agents)
-  double rest_density = 4;       // rho0, persons/m^2: particle volume V = 1/rho0 (model version 1: 2)
+  double rest_density = 6;       // rho0, persons/m^2: particle volume V = 1/rho0 (model version 1: 2)
   double mass = 1;               // per person
   double poisson_ratio = 0.3;    // elastic material only
   double wall_friction = 0;      // tangential velocity removed at walls, fraction per contact
