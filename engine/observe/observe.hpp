@@ -47,8 +47,8 @@ struct WindowOptions {
 };
 
 // A scenario ready to take observed agents: its groups and sources emptied, no time limit.
-// keep_exits false: exits become goals of the same shape (nobody leaves, so the set of agents
-// stays fixed, as gradients need; training masks people once the recording loses them).
+// keep_exits false: exits become goals of the same shape (nobody leaves, as gradients need;
+// training masks people once the recording loses them).
 ScenarioDef window_scenario(const ScenarioDef& scenario, bool keep_exits);
 
 // A simulation started from an observed state: the observed agents placed (moved out of solids
