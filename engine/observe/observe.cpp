@@ -150,7 +150,7 @@ void InflowRun::after_step(Simulation& sim) {
   if (inflow_.points.empty()) return;
   const Model& m = sim.model();
   const double dt = sim.scenario().dt;
-  const double spacing = std::sqrt(2 / (std::sqrt(3.0) * inflow_.density));  // hexagonal
+  const double spacing = hexagonal_spacing(inflow_.density);
   const double walk_in = desired_speed_ == DesiredSpeed::Observed ? m.params.v0_scale : 1.0;
   for (size_t k = 0; k < inflow_.points.size(); ++k) {
     const EdgeInflow::Point& in = inflow_.points[k];

@@ -303,7 +303,7 @@ void Simulation::place_group(size_t gi) {
       }
     return false;
   };
-  double a = std::sqrt(2 / (std::sqrt(3.0) * want));
+  double a = hexagonal_spacing(want);
   for (int attempt = 0; attempt < 200; ++attempt, a *= 0.98) {
     if (a < 2 * r) break;
     std::vector<Vec2> pts;

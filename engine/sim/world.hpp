@@ -2,6 +2,7 @@
 // ECS-style state: flat arrays (structure of arrays) of particle and agent components, dense
 // indices 0..size()-1 and stable entity ids (never reused). Removing an agent moves the last
 // one into its slot; ids keep pointing at the right agent through index_of().
+#include <cmath>
 #include <cstdint>
 #include <vector>
 
@@ -57,6 +58,9 @@ class World {
   std::vector<long> slot_;  // id -> index, -1 once removed
   EntityId next_id_ = 1;
 };
+
+// Spacing (m) of a hexagonal lattice of `density` persons per m^2 (rows a sqrt(3)/2 apart).
+inline double hexagonal_spacing(double density) { return std::sqrt(2 / (std::sqrt(3.0) * density)); }
 
 // Persons per m^2 at each agent of [first, w.size()), counting every agent (itself included)
 // with the kernel W(r) = 2 / (pi R^2) (1 - r^2 / R^2) for r < R, which integrates to 1 over the

@@ -22,7 +22,7 @@ void VideoLearnOptions::check() const {
 ObservedState sample_particles(const GridVelocityField& f, double density, const Geometry* venue) {
   if (!(density > 0)) throw Error("sample_particles: density must be > 0");
   ObservedState s;
-  const double a = std::sqrt(2 / (std::sqrt(3.0) * density));  // hexagonal spacing
+  const double a = hexagonal_spacing(density);
   const double row = a * std::sqrt(3.0) / 2;
   const Vec2 lo = f.origin, hi = f.origin + f.dx * Vec2(f.nx - 1, f.ny - 1);
   int r = 0;
@@ -103,7 +103,7 @@ EdgeInflow edge_inflow(const GridVelocityField& f, const std::vector<char>& cove
   if (covered.size() != f.velocity.size()) throw Error("inflow: coverage mask does not match the grid");
   EdgeInflow in;
   in.density = density;
-  const double spacing = std::sqrt(2 / (std::sqrt(3.0) * density));
+  const double spacing = hexagonal_spacing(density);
   for (int j = 0; j < f.ny; ++j)
     for (int i = 0; i < f.nx; ++i) {
       const size_t n = static_cast<size_t>(j) * f.nx + i;

@@ -51,8 +51,8 @@ GridVelocityField start_field(const std::vector<GridVelocityField>& fields, size
 
 // The inflow across the edge of the view that a start field implies (EdgeInflow): one point per
 // moving node next to an unseen one (`covered`: the nodes the camera sees) whose velocity points
-// out of the seen region's inward side, at density x inward speed x dx persons per second; none
-// closer than half the sampling spacing to a wall.
+// into the view, at density x inward speed x dx persons per second; none closer than half the
+// sampling spacing to a wall.
 EdgeInflow edge_inflow(const GridVelocityField& start, const std::vector<char>& covered, const Geometry& venue, double density);
 
 // Training and validation windows from fields[0, end) (validation: the last share of the clips),
