@@ -134,7 +134,9 @@ void draw_colour_bar(cv::Mat& img, const View& v, double vmin, double vmax, cons
     std::snprintf(buf, sizeof buf, "%.3g", val);
     cv::putText(img, buf, cv::Point(x0 + w + 4, y + 4), cv::FONT_HERSHEY_SIMPLEX, 0.4, cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
   }
-  cv::putText(img, unit, cv::Point(x0 - 6, y0 - 6), cv::FONT_HERSHEY_SIMPLEX, 0.4, cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
+  // The unit under the bar, below the axes' "x, y in m": above the bar, a title wider than a
+  // narrow map ran into it.
+  cv::putText(img, unit, cv::Point(x0 - 6, y0 + h + 32), cv::FONT_HERSHEY_SIMPLEX, 0.4, cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
 }
 
 void title(cv::Mat& img, const std::string& text) {
