@@ -199,6 +199,8 @@ const char* kTrainHelp =
     "                     field on the nodes they cover (the loss video learning uses)\n"
     "  --window S         seconds per window (default 2)\n"
     "  --stride S         seconds between windows (default 1)\n"
+    "  --area-weight W    trajectory loss: plus W times the squared error of density and\n"
+    "                     flow in the scenario's measurement areas (default 0: off)\n"
     "  --iterations N     Adam steps at most (default 120)\n"
     "  --batch N          windows per step (default 4)\n"
     "  --lr X             learning rate, in log units for positive scalars (default 0.03;\n"
@@ -370,7 +372,8 @@ const char* train_option_key(const std::string& flag) {
   static const std::pair<const char*, const char*> keys[] = {
       {"--window", "window"},       {"--iterations", "iterations"}, {"--batch", "batch"},
       {"--lr", "learning_rate"},    {"--clip", "clip"},             {"--validation", "validation"},
-      {"--eval-every", "eval_every"}, {"--patience", "patience"},   {"--seed", "seed"}};
+      {"--eval-every", "eval_every"}, {"--patience", "patience"},   {"--seed", "seed"},
+      {"--area-weight", "area_weight"}};
   for (const auto& [f, k] : keys)
     if (flag == f) return k;
   return nullptr;

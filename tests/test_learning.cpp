@@ -3,6 +3,7 @@
 #include <catch2/catch.hpp>
 #include <cmath>
 #include <cstdio>
+#include <functional>
 
 #include "engine/learn/losses.hpp"
 #include "engine/learn/train.hpp"
@@ -12,7 +13,26 @@
 using namespace crowdmpm;
 
 namespace {
-double rel_err(double a, double b) { return std::abs(a - b) / std::max({std::abs(a), std::abs(b), 1e-6}); }
+double rel_err(double a, double b, double floor = 1e-6) { return std::abs(a - b) / std::max({std::abs(a), std::abs(b), floor}); }
+
+// The worst error of a loss's gradient (dx, dv) against central differences of loss(x, v) in
+// every coordinate, relative to the larger of the two or `floor`.
+double worst_gradient_error(const std::function<double(const std::vector<Vec2>&, const std::vector<Vec2>&)>& loss,
+                            const std::vector<Vec2>& x, const std::vector<Vec2>& v, const std::vector<Vec2>& dx,
+                            const std::vector<Vec2>& dv, double h, double floor = 1e-6) {
+  double worst = 0;
+  for (size_t p = 0; p < x.size(); ++p)
+    for (int a = 0; a < 2; ++a) {
+      auto xp = x, xm = x, vp = v, vm = v;
+      xp[p][a] += h;
+      xm[p][a] -= h;
+      vp[p][a] += h;
+      vm[p][a] -= h;
+      const double fdx = (loss(xp, v) - loss(xm, v)) / (2 * h), fdv = (loss(x, vp) - loss(x, vm)) / (2 * h);
+      worst = std::max({worst, rel_err(dx[p][a], fdx, floor), rel_err(dv[p][a], fdv, floor)});
+    }
+  return worst;
+}
 }  // namespace
 
 TEST_CASE("trajectory loss skips masked samples and its gradient is exact", "[learning]") {
@@ -56,18 +76,7 @@ TEST_CASE("grid velocity loss: gradient with respect to positions and velocities
     auto loss = [&](const std::vector<Vec2>& xs, const std::vector<Vec2>& vs) {
       return grid_velocity_loss(xs, vs, 1, g, obs, nullptr, nullptr, empty_mass);
     };
-    worst = 0;
-    const double h = 1e-6;
-    for (size_t p = 0; p < x.size(); ++p)
-      for (int a = 0; a < 2; ++a) {
-        auto xp = x, xm = x, vp = v, vm = v;
-        xp[p][a] += h;
-        xm[p][a] -= h;
-        vp[p][a] += h;
-        vm[p][a] -= h;
-        const double fdx = (loss(xp, v) - loss(xm, v)) / (2 * h), fdv = (loss(x, vp) - loss(x, vm)) / (2 * h);
-        worst = std::max({worst, rel_err(dx[p][a], fdx), rel_err(dv[p][a], fdv)});
-      }
+    worst = worst_gradient_error(loss, x, v, dx, dv, 1e-6);
     return L;
   };
   double worst = 0;
@@ -154,6 +163,78 @@ std::vector<TrainWindow> synthetic_windows(const ScenarioDef& s, const Model& tr
   return out;
 }
 }  // namespace
+
+TEST_CASE("area loss: density and flow in measurement areas, gradient matches differences", "[learning]") {
+  const double nan = std::nan("");
+  Rng rng(5);
+  std::vector<Vec2> x, v, seen_x, seen_v;
+  for (int i = 0; i < 30; ++i) {
+    x.emplace_back(4 * rng.uniform(), 3 * rng.uniform());
+    v.emplace_back(rng.uniform() - 0.5, 1.2 * rng.uniform());
+    seen_x.emplace_back(x.back() + Vec2(0.3 * (rng.uniform() - 0.5), 0.3 * (rng.uniform() - 0.5)));
+    seen_v.emplace_back(v.back() + Vec2(0.2, -0.1));
+  }
+  seen_x[3] = Vec2(nan, nan);  // not recorded at this frame: counts on neither side
+  seen_v[3] = Vec2(nan, nan);
+  seen_v[7] = Vec2(nan, nan);  // no recorded velocity: counts in the densities only
+  // A rectangle, a triangle and a circle, overlapping the people's edges (soft indicator).
+  const std::vector<Shape> areas = {Shape::rect(Vec2(0.5, 0.5), Vec2(2.5, 2)),
+                                    Shape::polygon({Vec2(1.5, 0.2), Vec2(3.8, 0.4), Vec2(2.8, 2.8)}), Shape::circle(Vec2(1, 2), 0.8)};
+  std::vector<Vec2> dx(x.size(), Vec2::Zero()), dv(x.size(), Vec2::Zero());
+  const double w = 0.7;
+  const double L = area_loss_at(areas, x, v, seen_x, seen_v, w, &dx, &dv);
+  REQUIRE(L > 0);
+  auto loss = [&](const std::vector<Vec2>& xs, const std::vector<Vec2>& vs) {
+    return area_loss_at(areas, xs, vs, seen_x, seen_v, w, nullptr, nullptr);
+  };
+  const double worst = worst_gradient_error(loss, x, v, dx, dv, 1e-5, 1e-3);
+  std::printf("area loss %.4f, worst relative gradient error %.2e\n", L, worst);
+  CHECK(worst < 1e-5);
+  CHECK(dx[3].norm() == 0);  // not recorded: no pull
+  CHECK(dv[3].norm() == 0);
+  CHECK(dv[7].norm() == 0);
+  CHECK(dx[7].norm() > 0);
+  // The recorded state itself has zero loss; a far-away crowd has the squared recorded measures.
+  CHECK(area_loss_at(areas, seen_x, seen_v, seen_x, seen_v, 1, nullptr, nullptr) == Approx(0).margin(1e-24));
+  const std::vector<Shape> one = {Shape::rect(Vec2(0, 0), Vec2(2, 1))};
+  const std::vector<Vec2> at = {Vec2(1, 0.5)}, moving = {Vec2(1.0, 0)}, away = {Vec2(50, 50)};
+  // One person deep inside a 2 m^2 area walking 1 m/s: density 0.5, flow 0.5 (chi = 1 - 7e-3).
+  CHECK(area_loss_at(one, away, moving, at, moving, 1, nullptr, nullptr) == Approx(0.5).epsilon(0.02));
+  CHECK_THROWS_WITH(area_loss_at(one, at, moving, at, {}, 1, nullptr, nullptr), Catch::Contains("1 positions, 1 velocities against 1 recorded positions and 0"));
+}
+
+TEST_CASE("a window's loss with the area term: its gradient matches differences", "[learning]") {
+  // The recovery room's crowd, recorded from a model with another tau and stiffness; the window's
+  // loss (positions plus density and flow in two measurement areas) differentiated against
+  // central differences of tau, E and v0_scale.
+  ScenarioDef s = ScenarioDef::parse_text(kRecoveryScene);
+  s.areas.push_back(MeasurementArea{"front", Shape::rect(Vec2(4.5, 1), Vec2(6, 5)), 0, 1e300});
+  s.areas.push_back(MeasurementArea{"door", Shape::rect(Vec2(5.6, 2.2), Vec2(7, 3.8)), 0, 1e300});
+  Model truth = Model::default_of("crowd"), start = truth;
+  truth.set("tau", 0.3);
+  truth.set("E", 30);
+  auto windows = synthetic_windows(s, truth, 1, 0.5, 11);
+  const ScenarioDef windowed = window_scenario(s, false);
+  TrainOptions o;
+  o.area_weight = 2;
+  ModelGradient g;
+  const double L = window_loss(windowed, windows[0], start, o, &g);
+  TrainOptions positions = o;
+  positions.area_weight = 0;
+  const double L_pos = window_loss(windowed, windows[0], start, positions, nullptr);
+  REQUIRE(L > L_pos);  // the area term is there
+  std::printf("window loss %.5f (positions %.5f)\n", L, L_pos);
+  for (const std::string name : {"tau", "E", "v0_scale"}) {
+    const double h = 1e-5 * start.get(name);
+    Model mp = start, mm = start;
+    mp.set(name, start.get(name) + h);
+    mm.set(name, start.get(name) - h);
+    const double fd = (window_loss(windowed, windows[0], mp, o, nullptr) - window_loss(windowed, windows[0], mm, o, nullptr)) / (2 * h);
+    const double analytic = g.params.*param_info(name).field;
+    std::printf("  %s: adjoint %.9g differences %.9g\n", name.c_str(), analytic, fd);
+    CHECK(rel_err(analytic, fd) < 1e-4);
+  }
+}
 
 TEST_CASE("recovery: material parameters are recovered from trajectories the engine generated", "[learning][recovery]") {
   const ScenarioDef s = ScenarioDef::parse_text(kRecoveryScene);

@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Validation against real crowds: fundamental diagram (ring corridor) and bottleneck flow J(b)
 # for each model given (default: the built-in default and the shipped learned model), against
-# ../shared/data/reference. Writes benchmarks/validation/results.md.
-# Usage: benchmarks/validation/run.sh [BUILD_DIR] [MODEL ...]
+# ../shared/data/reference. Writes benchmarks/validation/results.md and its pictures (or into the
+# folder VALIDATION_OUT names).
+# Usage: [VALIDATION_OUT=DIR] benchmarks/validation/run.sh [BUILD_DIR] [MODEL ...]
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 build=${1:-build}
@@ -14,7 +15,9 @@ ref=../shared/data/reference
 v="$build/benchmarks/validate"
 work="$build/validation"
 mkdir -p "$work"
-out=benchmarks/validation/results.md
+here=${VALIDATION_OUT:-benchmarks/validation}
+mkdir -p "$here"
+out=$here/results.md
 real=../shared/data/real
 # Whole-run replays: the venue, the recording and the passage line through its bottleneck.
 replays=("scenarios/bottleneck_ao.json $real/fzj_hermes_2009_bottleneck_ao/traj_AO_300.txt -0.6,0,2.4,0"
@@ -149,7 +152,6 @@ open(out, "w").write("\n".join(L) + "\n")
 PY
 # A picture per check (validate chart), beside results.md.
 colours=(1f77b4 ff7f0e 2ca02c 9467bd 8c564b)
-here=benchmarks/validation
 fd_series=(--series "acceptance band|$work/fd_reference.csv|rho|band_lo|band|bbbbbb|band_hi"
            --series "Weidmann 1993|$work/fd_reference.csv|rho|weidmann|line|d62728"
            --series "Juelich corridor (Hermes uo runs, computed)|$work/fd_juelich.csv|rho|speed|points|000000")

@@ -79,4 +79,57 @@ double grid_velocity_loss(const std::vector<Vec2>& x, const std::vector<Vec2>& v
   return loss;
 }
 
+namespace {
+// chi(x) = 1 / (1 + exp(sdf / edge)) and its gradient (central differences of the sdf, as
+// Geometry::sdf_gradient).
+double soft_inside(const Shape& a, const Vec2& p, Vec2* grad) {
+  const double z = a.sdf(p) / kAreaEdge;
+  const double chi = z > 0 ? std::exp(-z) / (1 + std::exp(-z)) : 1 / (1 + std::exp(z));
+  if (grad) {
+    const double h = 1e-6;
+    const Vec2 g((a.sdf(p + Vec2(h, 0)) - a.sdf(p - Vec2(h, 0))) / (2 * h), (a.sdf(p + Vec2(0, h)) - a.sdf(p - Vec2(0, h))) / (2 * h));
+    *grad = -chi * (1 - chi) / kAreaEdge * g;
+  }
+  return chi;
+}
+}  // namespace
+
+double area_loss_at(const std::vector<Shape>& areas, const std::vector<Vec2>& x, const std::vector<Vec2>& v,
+                    const std::vector<Vec2>& seen_x, const std::vector<Vec2>& seen_v, double weight,
+                    std::vector<Vec2>* dL_dx, std::vector<Vec2>* dL_dv) {
+  const size_t n = x.size();
+  if (v.size() != n || seen_x.size() != n || seen_v.size() != n)
+    throw Error("area loss: " + std::to_string(n) + " positions, " + std::to_string(v.size()) + " velocities against " +
+                std::to_string(seen_x.size()) + " recorded positions and " + std::to_string(seen_v.size()) + " velocities");
+  double loss = 0;
+  for (const Shape& a : areas) {
+    const double A = a.area();
+    if (!(A > 0)) throw Error("area loss: a measurement area has no area");
+    double rho = 0, rho_seen = 0;
+    Vec2 q = Vec2::Zero(), q_seen = Vec2::Zero();
+    for (size_t p = 0; p < n; ++p) {
+      if (!seen_x[p].allFinite()) continue;
+      const double c = soft_inside(a, x[p], nullptr), c_seen = soft_inside(a, seen_x[p], nullptr);
+      rho += c;
+      rho_seen += c_seen;
+      if (!seen_v[p].allFinite()) continue;
+      q += c * v[p];
+      q_seen += c_seen * seen_v[p];
+    }
+    const double d_rho = (rho - rho_seen) / A;
+    const Vec2 d_q = (q - q_seen) / A;
+    loss += d_rho * d_rho + d_q.squaredNorm();
+    if (!dL_dx) continue;
+    for (size_t p = 0; p < n; ++p) {
+      if (!seen_x[p].allFinite()) continue;
+      Vec2 g;
+      const double c = soft_inside(a, x[p], &g);
+      const bool moving = seen_v[p].allFinite();
+      (*dL_dx)[p] += weight * 2 / A * (d_rho + (moving ? d_q.dot(v[p]) : 0.0)) * g;
+      if (moving && dL_dv) (*dL_dv)[p] += weight * 2 / A * c * d_q;
+    }
+  }
+  return weight * loss;
+}
+
 }  // namespace crowdmpm

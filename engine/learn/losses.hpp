@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "engine/analysis/grid_velocity.hpp"
+#include "engine/geometry/shape.hpp"
 
 namespace crowdmpm {
 
@@ -36,5 +37,17 @@ void trajectory_loss_at(const std::vector<Vec2>& x, const std::vector<Vec2>& tar
 double grid_velocity_loss(const std::vector<Vec2>& x, const std::vector<Vec2>& v, double mass, const Grid& shape,
                           const GridVelocityField& observed, std::vector<Vec2>* dL_dx, std::vector<Vec2>* dL_dv,
                           double empty_mass = 0);
+
+// Macroscopic loss in measurement areas: the density rho = sum_p chi(x_p) / A and the flow
+// q = sum_p chi(x_p) v_p / A (persons/m/s: density times velocity) of the agents in each area,
+// with the soft indicator chi(x) = 1 / (1 + exp(sdf(x) / kAreaEdge)), against the same measures
+// of the recorded positions seen_x and velocities seen_v:
+//   L = sum over areas of (rho - rho_rec)^2 + (1 s)^2 |q - q_rec|^2   ((persons/m^2)^2).
+// Agent p counts in both densities where seen_x[p] is finite, in both flows where seen_v[p] is
+// too. Returns weight * L and adds weight * dL/dx, dL/dv to dL_dx, dL_dv when given.
+constexpr double kAreaEdge = 0.1;  // m: how soft an area's edge is (chi from 0.12 to 0.88 over 0.4 m)
+double area_loss_at(const std::vector<Shape>& areas, const std::vector<Vec2>& x, const std::vector<Vec2>& v,
+                    const std::vector<Vec2>& seen_x, const std::vector<Vec2>& seen_v, double weight,
+                    std::vector<Vec2>* dL_dx, std::vector<Vec2>* dL_dv);
 
 }  // namespace crowdmpm

@@ -208,13 +208,39 @@ double window_loss(const ScenarioDef& windowed, const TrainWindow& tw, const Mod
   }
   if (target.steps.empty() || (tw.fields.empty() && target.samples() == 0)) return nan;
   const int steps = target.steps.back();
+  // Recorded positions at the window's start (dense order) and the recorded velocity at each
+  // target step: the displacement since the step before (the start for the first), NaN where
+  // either position is missing.
+  std::vector<Vec2> start_x(n, Vec2(nan, nan));
+  for (size_t i = 0; i < ws.ids.size(); ++i)
+    if (ws.ids[i]) start_x[static_cast<size_t>(sim.world().index_of(ws.ids[i]))] = tw.start.x[i];
+  const auto recorded_velocity = [&](size_t s) {
+    std::vector<Vec2> vs(n, Vec2(nan, nan));
+    const double gap = (target.steps[s] - (s > 0 ? target.steps[s - 1] : 0)) * windowed.dt;
+    for (size_t p = 0; p < n; ++p) {
+      const Vec2 before = s > 0 ? target.targets[s - 1][p] : start_x[p];
+      if (target.targets[s][p].allFinite() && before.allFinite()) vs[p] = (target.targets[s][p] - before) / gap;
+    }
+    return vs;
+  };
   // Per target step: the loss term at the state after it, and its gradient when asked for.
   std::function<double(size_t, const World&, std::vector<Vec2>*, std::vector<Vec2>*)> term;
   if (tw.fields.empty() && o.loss == TrainOptions::Loss::Trajectory) {
     const double weight = 1.0 / static_cast<double>(target.samples());
-    term = [&, weight](size_t s, const World& w, std::vector<Vec2>* dx, std::vector<Vec2>*) {
+    // The macroscopic term: density and flow in the venue's measurement areas, averaged over the
+    // window's samples and areas, times area_weight.
+    std::vector<Shape> areas;
+    std::vector<std::vector<Vec2>> seen_v;
+    if (o.area_weight > 0)
+      for (const MeasurementArea& a : windowed.areas) areas.push_back(a.shape);
+    if (!areas.empty())
+      for (size_t s = 0; s < target.steps.size(); ++s) seen_v.push_back(recorded_velocity(s));
+    const double area_weight = areas.empty() ? 0.0 : o.area_weight / static_cast<double>(target.steps.size() * areas.size());
+    term = [&, weight, areas = std::move(areas), seen_v = std::move(seen_v), area_weight](
+               size_t s, const World& w, std::vector<Vec2>* dx, std::vector<Vec2>* dv) {
       double l = 0;
       trajectory_loss_at(w.x, target.targets[s], weight, l, dx);
+      if (!areas.empty()) l += area_loss_at(areas, w.x, w.v, target.targets[s], seen_v[s], area_weight, dx, dv);
       return l;
     };
   } else {
@@ -225,25 +251,19 @@ double window_loss(const ScenarioDef& windowed, const TrainWindow& tw, const Mod
     std::vector<const GridVelocityField*> fields;
     made.reserve(target.steps.size());  // pointers into it stay valid
     size_t used = 0;
-    std::vector<Vec2> start_x(n, Vec2(nan, nan));  // dense order
-    for (size_t i = 0; i < ws.ids.size(); ++i)
-      if (ws.ids[i]) start_x[static_cast<size_t>(sim.world().index_of(ws.ids[i]))] = tw.start.x[i];
     for (size_t s = 0; s < target.steps.size(); ++s) {
       if (!tw.fields.empty()) {
         fields.push_back(&tw.fields[frame_of[s]]);
         used += fields.back()->mask_sum() > 0 ? 1 : 0;
         continue;
       }
-      const auto& now = target.targets[s];
+      const std::vector<Vec2> v = recorded_velocity(s);
       std::vector<Vec2> xs, vs;
-      for (size_t p = 0; p < n; ++p) {
-        // The frame before: the previous target row, or the start state for the first one.
-        const Vec2 before = s > 0 ? target.targets[s - 1][p] : start_x[p];
-        if (!now[p].allFinite() || !before.allFinite()) continue;
-        const double gap = (target.steps[s] - (s > 0 ? target.steps[s - 1] : 0)) * windowed.dt;
-        xs.push_back(now[p]);
-        vs.push_back((now[p] - before) / gap);
-      }
+      for (size_t p = 0; p < n; ++p)
+        if (v[p].allFinite()) {
+          xs.push_back(target.targets[s][p]);
+          vs.push_back(v[p]);
+        }
       made.push_back(grid_velocity_of(xs, vs, 1, sim.grid(), o.grid_min_mass));
       fields.push_back(&made.back());
       used += made.back().mask_sum() > 0 ? 1 : 0;
@@ -673,9 +693,10 @@ TrainResult train_on_windows(const std::vector<ScenarioDef>& scenarios, const st
 void parse_train_options(const JsonReader& op, TrainOptions& o) {
   op.require_object();
   op.allow_only({"window", "stride", "iterations", "batch", "learning_rate", "clip", "validation", "eval_every",
-                  "patience", "seed", "threads", "params", "learn_network", "loss", "desired_speed"});
+                  "patience", "seed", "threads", "params", "learn_network", "loss", "desired_speed", "area_weight"});
   o.window = op.in_range("window", 1e-3, 1e4, o.window);
   o.stride = op.in_range("stride", 1e-3, 1e4, o.stride);
+  o.area_weight = op.in_range("area_weight", 0, 1e6, o.area_weight);
   o.iterations = op.integer("iterations", 1, 1000000, o.iterations);
   o.batch = op.integer("batch", 1, 10000, o.batch);
   o.learning_rate = op.in_range("learning_rate", 1e-9, 10, o.learning_rate);

@@ -31,6 +31,10 @@ struct TrainOptions {
   // cover (at least grid_min_mass persons), averaged over the window's frames.
   enum class Loss { Trajectory, GridVelocity };
   Loss loss = Loss::Trajectory;
+  // Trajectory loss: plus area_weight (m^2 per (persons/m^2)^2) times the macroscopic loss in the
+  // venue's measurement areas (losses.hpp area_loss_at: density and flow against the recorded
+  // ones), averaged over the window's samples and areas. 0: positions only.
+  double area_weight = 0;
   // Windows with observed fields (video) use the loss's empty_mass form with this many persons.
   double grid_min_mass = 0.5;
   enum class Optimizer { Adam, Lbfgs };
@@ -170,7 +174,7 @@ TrainResult train_on_windows(const std::vector<ScenarioDef>& scenarios, const st
 //    "material": "crowd" | "fluid" | "social_force" (start from that kind's defaults instead),
 //    "options": {"window", "stride", "iterations", "batch", "learning_rate", "clip",
 //                "validation", "eval_every", "patience", "seed", "threads", "params",
-//                "learn_network", "loss", "desired_speed"}}
+//                "learn_network", "loss", "desired_speed", "area_weight"}}
 // Relative paths resolve from base_dir. Errors name the JSON path (docs/learning.md).
 struct TrainJob {
   std::vector<TrainDataset> data;
