@@ -5,7 +5,8 @@
 # (benchmarks/validation/run.sh: fundamental diagram, J(b), whole-run replays).
 # Each variant trains the crowd material only, from the default, on the training runs of
 # learn_real.sh. Writes benchmarks/results/learning_real_variants.md; models, predictions and
-# validation tables under $BUILD_DIR/variants/<name>/.
+# validation tables under $BUILD_DIR/variants/<name>/. With NAMEs, only those variants run and the
+# table goes to $BUILD_DIR/variants/results.md instead (the recorded one keeps every variant).
 # Usage: benchmarks/learn_real_variants.sh [BUILD_DIR] [NAME ...]   (default: every variant)
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -27,6 +28,10 @@ variants=(
 )
 wanted=("$@")
 out=benchmarks/results/learning_real_variants.md
+[ ${#wanted[@]} -eq 0 ] || out="$build/variants/results.md"
+for w in "${wanted[@]}"; do
+  printf '%s\n' "${variants[@]}" | cut -d'|' -f1 | grep -qx "$w" || { echo "no variant named '$w'" >&2; exit 2; }
+done
 summary="$build/variants/summary.tsv"
 mkdir -p "$build/variants"
 : > "$summary"
@@ -75,7 +80,8 @@ L = ["# Learning from real recordings: protocol variants", "",
      "variant: fundamental diagram densities in band of 12, J(b) widths within 20% of 8, replays within 15% of 3;",
      "CrowdQueue 030, one of the three replays, is a training run of every variant).",
      "uo-180-180-070 is predicted in the venue the variant's training used for the constricted runs: `corridor`",
-     "(no exit constriction) for `shipped`, `corridor_exit_070` (its 0.7 m exit) for the others.", ""]
+     "(no exit constriction) for `shipped`, `corridor_exit_070` (its 0.7 m exit) for the others. \"val\": the validation",
+     "loss before and after training, m² (with the area loss it includes W times the area term: not comparable across rows).", ""]
 L += ["| variant | options | training | uo-145 | uo-180-070 | uo-240 | CQ040 | AO_300 | beats default | FD | J(b) | replays |",
       "|---|---|---|---|---|---|---|---|---|---|---|---|"]
 notes = []
@@ -92,9 +98,9 @@ for name, what, opts, seconds, val, ade, results in rows:
         sec = [s for s in sections if s.startswith(head)][0]
         r = [l for l in sec.splitlines() if l.startswith("| %s |" % name)]
         return "%d/%d" % (sum("| yes |" in l for l in r), len(r))
-    loss = re.search(r"loss ([0-9.]+) -> ([0-9.]+)", val)
+    loss = re.search(r"loss (\S+) -> (\S+)", val)
     L.append("| %s | `%s` | %s s, val %s -> %s | %s | %d/5 | %s | %s | %s |" % (
-        name, opts, seconds, loss.group(1), loss.group(2), " | ".join(cells), wins,
+        name, opts, seconds, loss.group(1) if loss else "?", loss.group(2) if loss else "?", " | ".join(cells), wins,
         count("Fundamental diagram (ring"), count("Bottleneck flow"), count("Whole-run replays")))
     fails = [l for l in text.splitlines() if l.startswith("| %s |" % name) and "**no**" in l]
     notes.append("- **%s**: %s.%s" % (name, what, (" Out of acceptance: " + "; ".join(

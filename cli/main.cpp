@@ -835,9 +835,8 @@ int cmd_train(const Args& a) {
   });
   const Model m = describe_learned(job, r);
   save_model(m, a.out);
-  const bool traj = o.loss == TrainOptions::Loss::Trajectory;
   std::printf("validation %s loss %.5f -> %.5f %s (best at iteration %d of %d%s); %ld windows skipped; wrote %s\n",
-              traj ? "trajectory" : "grid velocity", r.initial_validation, r.best_validation, traj ? "m2" : "(m/s)2",
+              loss_name(o).c_str(), r.initial_validation, r.best_validation, loss_unit(o),
               r.best_iteration, r.iterations, r.early_stopped ? ", stopped early" : "", r.skipped_windows, a.out.c_str());
   std::vector<ScenarioDef> venues;
   for (const auto& d : job.data) venues.push_back(d.scenario);

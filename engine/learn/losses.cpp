@@ -80,8 +80,7 @@ double grid_velocity_loss(const std::vector<Vec2>& x, const std::vector<Vec2>& v
 }
 
 namespace {
-// chi(x) = 1 / (1 + exp(sdf / edge)) and its gradient (central differences of the sdf, as
-// Geometry::sdf_gradient).
+// chi(x) = 1 / (1 + exp(sdf / edge)) and its gradient (central differences of the sdf).
 double soft_inside(const Shape& a, const Vec2& p, Vec2* grad) {
   const double z = a.sdf(p) / kAreaEdge;
   const double chi = z > 0 ? std::exp(-z) / (1 + std::exp(-z)) : 1 / (1 + std::exp(z));
@@ -119,13 +118,13 @@ double area_loss_at(const std::vector<Shape>& areas, const std::vector<Vec2>& x,
     const double d_rho = (rho - rho_seen) / A;
     const Vec2 d_q = (q - q_seen) / A;
     loss += d_rho * d_rho + d_q.squaredNorm();
-    if (!dL_dx) continue;
+    if (!dL_dx && !dL_dv) continue;
     for (size_t p = 0; p < n; ++p) {
       if (!seen_x[p].allFinite()) continue;
       Vec2 g;
       const double c = soft_inside(a, x[p], &g);
       const bool moving = seen_v[p].allFinite();
-      (*dL_dx)[p] += weight * 2 / A * (d_rho + (moving ? d_q.dot(v[p]) : 0.0)) * g;
+      if (dL_dx) (*dL_dx)[p] += weight * 2 / A * (d_rho + (moving ? d_q.dot(v[p]) : 0.0)) * g;
       if (moving && dL_dv) (*dL_dv)[p] += weight * 2 / A * c * d_q;
     }
   }

@@ -44,7 +44,8 @@ double grid_velocity_loss(const std::vector<Vec2>& x, const std::vector<Vec2>& v
 // of the recorded positions seen_x and velocities seen_v:
 //   L = sum over areas of (rho - rho_rec)^2 + (1 s)^2 |q - q_rec|^2   ((persons/m^2)^2).
 // Agent p counts in both densities where seen_x[p] is finite, in both flows where seen_v[p] is
-// too. Returns weight * L and adds weight * dL/dx, dL/dv to dL_dx, dL_dv when given.
+// too. Returns weight * L and adds weight * dL/dx, dL/dv to dL_dx, dL_dv when given. (Training
+// scores every frame of a window in every area: an area's "from"/"to" times are not used.)
 constexpr double kAreaEdge = 0.1;  // m: how soft an area's edge is (chi from 0.12 to 0.88 over 0.4 m)
 double area_loss_at(const std::vector<Shape>& areas, const std::vector<Vec2>& x, const std::vector<Vec2>& v,
                     const std::vector<Vec2>& seen_x, const std::vector<Vec2>& seen_v, double weight,

@@ -690,6 +690,13 @@ TrainResult train_on_windows(const std::vector<ScenarioDef>& scenarios, const st
   return res;
 }
 
+std::string loss_name(const TrainOptions& o) {
+  if (o.loss == TrainOptions::Loss::GridVelocity) return "grid velocity";
+  return o.area_weight > 0 ? "trajectory + " + format_number(o.area_weight) + " x area" : "trajectory";
+}
+
+const char* loss_unit(const TrainOptions& o) { return o.loss == TrainOptions::Loss::GridVelocity ? "(m/s)2" : "m2"; }
+
 void parse_train_options(const JsonReader& op, TrainOptions& o) {
   op.require_object();
   op.allow_only({"window", "stride", "iterations", "batch", "learning_rate", "clip", "validation", "eval_every",
@@ -709,6 +716,8 @@ void parse_train_options(const JsonReader& op, TrainOptions& o) {
   o.learn_network = op.boolean("learn_network", o.learn_network);
   o.loss = op.one_of("loss", {"trajectory", "grid_velocity"}, "trajectory") == "trajectory" ? TrainOptions::Loss::Trajectory
                                                                                               : TrainOptions::Loss::GridVelocity;
+  if (o.area_weight > 0 && o.loss != TrainOptions::Loss::Trajectory)
+    throw Error(op.path() + ".area_weight: the area loss is a term of the trajectory loss; \"loss\" is \"grid_velocity\"");
   const std::string speed_mode = op.one_of("desired_speed", {"observed", "scenario", "free"}, "observed");
   o.desired_speed = speed_mode == "observed" ? DesiredSpeed::Observed : speed_mode == "scenario" ? DesiredSpeed::Scenario : DesiredSpeed::Free;
   if (auto ps = op.get("params")) {
@@ -762,11 +771,10 @@ Model describe_learned(const TrainJob& job, const TrainResult& r) {
     const size_t slash = f.find_last_of('/');
     from += (from.empty() ? "" : ", ") + (slash == std::string::npos ? f : f.substr(slash + 1));
   }
-  const bool traj = job.options.loss == TrainOptions::Loss::Trajectory;
   m.description = "Learned by crowdmpm train from " + from + " (" + std::to_string(r.train_windows) + " training, " +
                   std::to_string(r.validation_windows) + " validation windows of " + format_number(job.options.window) +
-                  " s); validation " + (traj ? "trajectory" : "grid velocity") + " loss " +
-                  format_number(r.initial_validation) + " " + (traj ? "m2" : "(m/s)2") + " at the start, " +
+                  " s); validation " + loss_name(job.options) + " loss " +
+                  format_number(r.initial_validation) + " " + loss_unit(job.options) + " at the start, " +
                   format_number(r.best_validation) + " at iteration " + std::to_string(r.best_iteration) + " of " +
                   std::to_string(r.iterations) + ".";
   return m;

@@ -131,9 +131,10 @@ void make_windows(const std::vector<TrainDataset>& data, const TrainOptions& o, 
                   std::vector<TrainWindow>& validation);
 
 // The loss of one window under a model (o.loss: the trajectory loss, mean squared position error
-// in m^2 over every frame of the window and every person placed at its start; or the grid
-// velocity loss, (m/s)^2 per person), and its gradient when `grad` is given. `windowed` is
-// window_scenario(scenario, false). NaN when nobody can be compared.
+// in m^2 over every frame of the window and every person placed at its start, plus area_weight
+// times the area loss in the venue's measurement areas; or the grid velocity loss, (m/s)^2 per
+// person), and its gradient when `grad` is given. `windowed` is window_scenario(scenario, false).
+// NaN when nobody can be compared.
 double window_loss(const ScenarioDef& windowed, const TrainWindow& w, const Model& m, const TrainOptions& o,
                    ModelGradient* grad);
 
@@ -157,6 +158,11 @@ struct TrainResult {
 };
 
 using TrainCallback = std::function<void(const TrainProgress&)>;
+
+// What the training and validation losses of o are, for messages: "trajectory", "trajectory +
+// 2 x area" (area_weight 2) or "grid velocity"; and their unit, "m2" or "(m/s)2".
+std::string loss_name(const TrainOptions& o);
+const char* loss_unit(const TrainOptions& o);
 
 // Fits `start` on the datasets' windows. Throws Error when there are no training or no
 // validation windows.

@@ -210,7 +210,8 @@ CMPM_API cmpm_Status cmpm_World_LoadTraction(cmpm_WorldId world, const char* tra
  *    "options": {"window": 2, "stride": 1, "iterations": 120, "batch": 4, "learning_rate": 0.03,
  *                "clip": 1, "validation": 0.25, "eval_every": 5, "patience": 6, "seed": 1,
  *                "threads": 1, "params": [NAME, ...], "learn_network": true,
- *                "loss": "trajectory" | "grid_velocity", "desired_speed": "observed" | "scenario" | "free"},
+ *                "loss": "trajectory" | "grid_velocity", "desired_speed": "observed" | "scenario" | "free",
+ *                "area_weight": 0},
  *    "input": {"max_bytes": 268435456, "allow_outside_paths": false}   (optional: input limits)}
  * Relative paths resolve from the working directory. Blocks until training ends (seconds to
  * minutes); the result does not depend on "threads". CMPM_ERROR_INVALID_INPUT for a request,
