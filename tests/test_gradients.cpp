@@ -319,9 +319,10 @@ const char* kGradientScene = R"({"format": "crowdmpm-scenario", "version": 1, "n
   "groups": [{"spawn": {"rect": [1.0, 1.0, 3.0, 3.4]}, "count": 14, "desired_speed": 1.2,
               "behaviour": {"type": "goal", "target": "out"}}]})";
 
-Model gradient_model(double time_gap = 0) {
+Model gradient_model(double time_gap = 0, double headway_gap = 0) {
   Model m = Model::default_model();
   m.set("time_gap", time_gap);
+  m.set("headway_gap", headway_gap);
   // The scene's contacts were laid out for these (the default model's comfort distance is
   // smaller): every part of the step stays active.
   m.set("comfort_distance", 0.3);
@@ -344,7 +345,7 @@ namespace {
 // every third network weight) and the initial x and v of every third agent. entering: two people
 // walk in from the left after steps 3 and 7 (WindowGradient::run's after_step), among the crowd
 // from then on; their entry state is data (J set to the crowd's, as a constant).
-double window_gradient_error(int steps, double time_gap = 0, bool entering = false) {
+double window_gradient_error(int steps, double time_gap = 0, bool entering = false, double headway_gap = 0) {
   const ScenarioDef s = ScenarioDef::parse_text(kGradientScene);
   Rng rng(99);
   std::vector<std::vector<Vec2>> target(steps + 1);
@@ -385,7 +386,7 @@ double window_gradient_error(int steps, double time_gap = 0, bool entering = fal
     }
     return L;
   };
-  Model model = gradient_model(time_gap);
+  Model model = gradient_model(time_gap, headway_gap);
   auto sim = make_sim(model);
   // The scene must exercise contacts and the traction network.
   REQUIRE(sim->pair_stats().pairs > 10);
@@ -497,6 +498,12 @@ TEST_CASE("12-step window gradient with the headway speed adaptation matches cen
   // relative): round-off of the differences (h = 3e-5 makes it 3x larger, h = 3e-4 crosses a
   // kink of the step), so this case is held to 3e-5.
   CHECK(window_gradient_error(12, 0.8) < 3e-5);
+}
+
+TEST_CASE("12-step window gradient with a headway gap kept at standstill matches central differences", "[gradients]") {
+  // headway_gap 0.1 m: speed <= (gap - 0.1) / T; its own gradient and time_gap's (now through
+  // the shifted gap) against differences, with every other parameter and the initial state.
+  CHECK(window_gradient_error(12, 0.8, false, 0.1) < 3e-5);
 }
 
 // The kernel adjoints chained by hand over two steps (a drive towards rest, pair traction, grid

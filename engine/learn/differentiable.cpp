@@ -117,9 +117,9 @@ void drive_adjoint(const StepInputs& in, const Behaviour& beh, const World& w, s
 }
 
 // Adjoint of kernel_headway at the stored state w (heading = e, free_speed = u): where the
-// speed was capped, a_p += (V - u) e / tau with V = max(0, s / T) and
-// s = (x_q - x_p) . e - r_p - r_q. Adds dL/dx of p and q, dL/de_p, dL/du_p, and tau's and T's
-// gradients.
+// speed was capped, a_p += (V - u) e / tau with V = max(0, (s - s0) / T) and
+// s = (x_q - x_p) . e - r_p - r_q. Adds dL/dx of p and q, dL/de_p, dL/du_p, and tau's, T's and
+// s0's gradients.
 void headway_adjoint(const StepInputs& in, const NeighbourGrid& nb, const World& w, const std::vector<Vec2>& a_bar,
                      std::vector<Vec2>& x_bar, std::vector<Vec2>& e_bar, std::vector<double>& u_bar, ModelGradient& out) {
   const MaterialParams& P = in.model.params;
@@ -128,8 +128,8 @@ void headway_adjoint(const StepInputs& in, const NeighbourGrid& nb, const World&
     const double u = w.free_speed[p];
     if (!(u > 0)) continue;
     const Vec2 e = w.heading[p];
-    const Headway h = headway_point(nb, w, p, e, P.headway_width, P.time_gap * u);
-    const double g = h.gap / P.time_gap, V = std::max(0.0, g);
+    const Headway h = headway_point(nb, w, p, e, P.headway_width, P.time_gap * u + P.headway_gap);
+    const double g = (h.gap - P.headway_gap) / P.time_gap, V = std::max(0.0, g);
     if (!(V < u)) continue;
     const Vec2& ab = a_bar[p];
     const Vec2 c = (V - u) / P.tau * e;
@@ -138,7 +138,8 @@ void headway_adjoint(const StepInputs& in, const NeighbourGrid& nb, const World&
     out.params.tau += ab.dot(-c / P.tau);
     if (g > 0) {
       const double V_bar = ab.dot(e) / P.tau, gap_bar = V_bar / P.time_gap;
-      out.params.time_gap += V_bar * (-h.gap / (P.time_gap * P.time_gap));
+      out.params.time_gap += V_bar * (-g / P.time_gap);
+      out.params.headway_gap -= gap_bar;
       const Vec2 r = w.x[h.q] - w.x[p];
       x_bar[h.q] += gap_bar * e;
       x_bar[p] -= gap_bar * e;

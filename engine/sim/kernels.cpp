@@ -166,7 +166,7 @@ void kernel_drive(const StepInputs& in, World& w, ThreadPool& pool) {
 }
 
 // ---------------------------------------------------------------------------------------------
-// 1b. Headway speed adaptation: a_p += (min(u_p, max(0, s_p / T)) - u_p) e_p / tau (kernels.hpp).
+// 1b. Headway speed adaptation: a_p += (min(u_p, max(0, (s_p - s0) / T)) - u_p) e_p / tau (kernels.hpp).
 
 Headway headway_point(const NeighbourGrid& nb, const World& w, size_t p, const Vec2& e, double width, double look) {
   Headway h;
@@ -203,8 +203,8 @@ void kernel_headway(const StepInputs& in, const NeighbourGrid& nb, World& w, Thr
     for (size_t p = b; p < e; ++p) {
       const double u = w.free_speed[p];
       if (!(u > 0)) continue;
-      const Headway h = headway_point(nb, w, p, w.heading[p], P.headway_width, P.time_gap * u);
-      const double V = std::max(0.0, h.gap / P.time_gap);
+      const Headway h = headway_point(nb, w, p, w.heading[p], P.headway_width, P.time_gap * u + P.headway_gap);
+      const double V = std::max(0.0, (h.gap - P.headway_gap) / P.time_gap);
       if (V < u) w.accel[p] += (V - u) / P.tau * w.heading[p];
     }
   });

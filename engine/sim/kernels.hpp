@@ -130,7 +130,8 @@ TermPoint terms_point(const StepInputs& in, const World& w, size_t p, const Vec2
 std::vector<double> terms_density(const StepInputs& in, const World& w);
 // Headway speed adaptation (model parameter time_gap T > 0; after Tordeux, Chraibi & Seyfried
 // 2016): people walk no faster than the gap to the nearest person ahead of them allows,
-//   V_p = min(u_p, max(0, s_p / T)),  s_p = min over q ahead of (x_q - x_p) . e_p - r_p - r_q,
+//   V_p = min(u_p, max(0, (s_p - s0) / T)),  s_p = min over q ahead of (x_q - x_p) . e_p - r_p - r_q,
+// s0 = headway_gap (0: Tordeux's law with the body length r_p + r_q),
 // over the neighbours q ahead ((x_q - x_p) . e_p > 0) and within a lane of half-width
 // headway_width (r_p + r_q) (|(x_q - x_p) x e_p| below it: 1 is everyone whose body overlaps
 // p's path; smaller lets a person half a body aside be followed closely, the zipper effect of
@@ -141,7 +142,7 @@ struct Headway {
   size_t q = static_cast<size_t>(-1);  // the nearest person ahead, or none
   double gap = 1e300;                  // s_p, m
 };
-// `look`: the free distance T u_p beyond which nobody ahead limits p's speed (the search stops there).
+// `look`: the free distance T u_p + s0 beyond which nobody ahead limits p's speed (the search stops there).
 Headway headway_point(const NeighbourGrid& nb, const World& w, size_t p, const Vec2& e, double width, double look);
 void kernel_headway(const StepInputs& in, const NeighbourGrid& nb, World& w, ThreadPool& pool);
 // How far beyond body contact (r_p + r_q) a pair interacts: the comfort distance c for the

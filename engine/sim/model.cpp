@@ -28,6 +28,7 @@ const std::vector<ParamInfo>& param_table() {
       {"shoulder_clearance", &MaterialParams::shoulder_clearance, 0, 0.5, "m", kFixed, false},
       {"alignment_time", &MaterialParams::alignment_time, 1e-3, 1e3, "s", kContinuum, false},
       {"time_gap", &MaterialParams::time_gap, 0, 5, "s", kContinuum, false},
+      {"headway_gap", &MaterialParams::headway_gap, 0, 1, "m", kContinuum, false},
       // A hard lane edge: no gradient, fixed in training.
       {"headway_width", &MaterialParams::headway_width, 0.05, 1, "1", kFixed, false},
       // Routes are recomputed from the crowd's density once a second; held fixed through a
@@ -158,6 +159,10 @@ std::string ParamInfo::not_learnable_in(const Model& m) const {
     return "the fluid material is symmetric: tension_scale is fixed at 1";
   if (field == &MaterialParams::time_gap && m.params.time_gap == 0)
     return "time_gap is 0 in the starting model (the headway adaptation is off): start from a value above 0 to learn it";
+  if (field == &MaterialParams::headway_gap && (m.params.headway_gap == 0 || m.params.time_gap == 0))
+    return m.params.time_gap == 0 ? "headway_gap belongs to the headway adaptation, which is off (time_gap 0)"
+                                  : "headway_gap is 0 in the starting model: start from a value above 0 to learn it "
+                                    "(it is learned in log coordinates)";
   if ((learned_by & (m.is_continuum() ? kContinuum : kSocialForce)) == 0)
     return std::string(name) + " is not learned by the " + material_name(m.material) + " model";
   return {};

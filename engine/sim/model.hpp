@@ -31,6 +31,7 @@ struct MaterialParams {
   double shoulder_clearance = 0;
   double alignment_time = 0.5;   // s: particle velocities relax towards the local grid flow (PIC share dt/this)
   double time_gap = 0.8;         // s: T of the headway speed adaptation (0: off; model version 1: 0); speed <= gap ahead / T
+  double headway_gap = 0;        // m: s0, the gap kept at standstill beyond the bodies: speed <= (gap ahead - s0) / T
   double headway_width = 0.5;    // lane half-width of the headway, as a fraction of r_p + r_q
   // Route choice under congestion (Hughes 2002): goal routes minimise the travel cost
   // 1 + w (u_ref / v(rho) - 1) per metre, v(rho) the headway's speed at the local density; 0: the
