@@ -128,7 +128,7 @@ void headway_adjoint(const StepInputs& in, const NeighbourGrid& nb, const World&
     const double u = w.free_speed[p];
     if (!(u > 0)) continue;
     const Vec2 e = w.heading[p];
-    const Headway h = headway_point(nb, w, p, e, P.headway_width, P.time_gap * u + P.headway_gap);
+    const Headway h = headway_point(nb, w, p, e, P.headway_width, headway_look(P, u));
     const double g = (h.gap - P.headway_gap) / P.time_gap, V = std::max(0.0, g);
     if (!(V < u)) continue;
     const Vec2& ab = a_bar[p];

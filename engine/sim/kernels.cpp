@@ -203,8 +203,8 @@ void kernel_headway(const StepInputs& in, const NeighbourGrid& nb, World& w, Thr
     for (size_t p = b; p < e; ++p) {
       const double u = w.free_speed[p];
       if (!(u > 0)) continue;
-      const Headway h = headway_point(nb, w, p, w.heading[p], P.headway_width, P.time_gap * u + P.headway_gap);
-      const double V = std::max(0.0, (h.gap - P.headway_gap) / P.time_gap);
+      const Headway h = headway_point(nb, w, p, w.heading[p], P.headway_width, headway_look(P, u));
+      const double V = headway_speed(P, h.gap);
       if (V < u) w.accel[p] += (V - u) / P.tau * w.heading[p];
     }
   });

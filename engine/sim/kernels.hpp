@@ -142,7 +142,11 @@ struct Headway {
   size_t q = static_cast<size_t>(-1);  // the nearest person ahead, or none
   double gap = 1e300;                  // s_p, m
 };
-// `look`: the free distance T u_p + s0 beyond which nobody ahead limits p's speed (the search stops there).
+// The free distance T u + s0 beyond which nobody ahead limits a person walking at u (the search
+// for the nearest person ahead stops there); V = headway_speed(P, gap) below it.
+inline double headway_look(const MaterialParams& P, double u) { return P.time_gap * u + P.headway_gap; }
+inline double headway_speed(const MaterialParams& P, double gap) { return std::max(0.0, (gap - P.headway_gap) / P.time_gap); }
+// `look`: headway_look of p's free speed.
 Headway headway_point(const NeighbourGrid& nb, const World& w, size_t p, const Vec2& e, double width, double look);
 void kernel_headway(const StepInputs& in, const NeighbourGrid& nb, World& w, ThreadPool& pool);
 // How far beyond body contact (r_p + r_q) a pair interacts: the comfort distance c for the

@@ -639,7 +639,7 @@ PairStats Simulation::pair_stats() {
       if ((w.x[q] - w.x[p]).norm() < w.radius[p] + w.radius[q] + w.comfort[p]) ++st.pairs;
     });
     if (model_.is_continuum() && model_.params.time_gap > 0 && w.free_speed[p] > 0)
-      nb.for_each_candidate_ahead(p, w.x[p], w.radius[p], w.heading[p], model_.params.time_gap * w.free_speed[p] + model_.params.headway_gap,
+      nb.for_each_candidate_ahead(p, w.x[p], w.radius[p], w.heading[p], headway_look(model_.params, w.free_speed[p]),
                                   model_.params.headway_width, [&](size_t) { ++st.ahead; });
   }
   return st;
