@@ -3,7 +3,8 @@
 # yardsticks: held-out prediction (ADE at 4 s on the five runs of learning_real.md, against the
 # untrained default and constant velocity) and the validation against real crowds
 # (benchmarks/validation/run.sh: fundamental diagram, J(b), whole-run replays).
-# Each variant trains the crowd material only, from the default, on the training runs of
+# Each variant trains the crowd material only, from the default (or from the default with the
+# variant's start parameters changed), on the training runs of
 # learn_real.sh. Writes benchmarks/results/learning_real_variants.md; models, predictions and
 # validation tables under $BUILD_DIR/variants/<name>/. With NAMEs, only those variants run and the
 # table goes to $BUILD_DIR/variants/results.md instead (the recorded one keeps every variant).
@@ -18,6 +19,7 @@ cli="$build/cli/crowdmpm"
 corr=$data/fzj_hermes_2009_corridor_uo
 bott=$data/fzj_crowdqueue_2018_bottleneck
 # name | venue of uo-300-300-160 (training) and of uo-180-180-070 (held out) | train options | what it is
+#   [| start: the built-in default with these parameters changed, name=value,... (default: unchanged)]
 variants=(
   "shipped|corridor_300 corridor|--window 16 --stride 4 --iterations 200|the shipped protocol (learn_real.sh): the two runs' exit constrictions not modelled"
   "venues|corridor_300_exit_160 corridor_exit_070|--window 16 --stride 4 --iterations 200|the shipped protocol in the runs' venues as built (exit posts modelled)"
@@ -25,6 +27,10 @@ variants=(
   "venues_area4|corridor_300_exit_160 corridor_exit_070|--window 16 --stride 4 --iterations 200 --area-weight 4|as venues, plus the area loss, weight 4"
   "venues_w8|corridor_300_exit_160 corridor_exit_070|--window 8 --stride 2 --iterations 200|as venues, 8 s windows every 2 s"
   "venues_w4|corridor_300_exit_160 corridor_exit_070|--window 4 --stride 2 --iterations 200|as venues, 4 s windows every 2 s"
+  "venues_area1_gap|corridor_300_exit_160 corridor_exit_070|--window 16 --stride 4 --iterations 200 --area-weight 1|as venues_area1, starting from a headway gap of 0.1 m (learned)|headway_gap=0.1"
+  "venues_area1_gap_t06|corridor_300_exit_160 corridor_exit_070|--window 16 --stride 4 --iterations 200 --area-weight 1|as venues_area1_gap, starting from a time gap of 0.6 s|headway_gap=0.1,time_gap=0.6"
+  "venues_w8_gap|corridor_300_exit_160 corridor_exit_070|--window 8 --stride 2 --iterations 200|as venues_w8, starting from a headway gap of 0.1 m (learned)|headway_gap=0.1"
+  "venues_w8_area1_gap|corridor_300_exit_160 corridor_exit_070|--window 8 --stride 2 --iterations 200 --area-weight 1|as venues_w8_gap, plus the area loss, weight 1|headway_gap=0.1"
 )
 wanted=("$@")
 out=benchmarks/results/learning_real_variants.md
@@ -36,17 +42,31 @@ summary="$build/variants/summary.tsv"
 mkdir -p "$build/variants"
 : > "$summary"
 for v in "${variants[@]}"; do
-  IFS='|' read -r name venues opts what <<< "$v"
+  IFS='|' read -r name venues opts what changes <<< "$v"
   if [ ${#wanted[@]} -gt 0 ] && [[ ! " ${wanted[*]} " == *" $name "* ]]; then continue; fi
   read -r c300 c070 <<< "$venues"
   dir="$build/variants/$name"
   mkdir -p "$dir"
+  start_model=(--material crowd)
+  if [ -n "${changes:-}" ]; then
+    /usr/bin/python3 - engine/sim/default_model.json "$changes" "$dir/start.json" <<'PY'
+import json, sys
+m = json.load(open(sys.argv[1]))
+for kv in sys.argv[2].split(","):
+    k, v = kv.split("=")
+    m["parameters"][k] = float(v)
+m["name"] = "start"
+m["description"] = "the built-in default with " + sys.argv[2]
+json.dump(m, open(sys.argv[3], "w"), indent=1)
+PY
+    start_model=(--model "$dir/start.json")
+  fi
   start=$(date +%s)
   # shellcheck disable=SC2086
   "$cli" train --scenario scenarios/corridor.json --trajectories "$corr/uo-050-180-180.txt" "$corr/uo-100-180-180.txt" "$corr/uo-180-180-180.txt" \
       --scenario "scenarios/$c300.json" --trajectories "$corr/uo-300-300-160.txt" \
       --scenario scenarios/bottleneck.json --trajectories "$bott/030_c_56_h0.txt" \
-      --material crowd --desired-speed free $opts --threads 2 --quiet --out "$dir/$name.json" > "$dir/train.log"
+      "${start_model[@]}" --desired-speed free $opts --threads 2 --quiet --out "$dir/$name.json" > "$dir/train.log"
   seconds=$(( $(date +%s) - start ))
   ade=()
   for spec in "$corr/uo-145-180-180.txt corridor" "$corr/uo-180-180-070.txt $c070" "$corr/uo-240-240-240.txt corridor_240" \
@@ -63,7 +83,7 @@ print("%s:%s:%.3f/%.3f/%.3f" % (sys.argv[2], sys.argv[3], a["constant velocity"]
 ' "$dir/$run/prediction.json" "$run" "$scen")")
   done
   VALIDATION_OUT="$dir/validation" bash benchmarks/validation/run.sh "$build" "$dir/$name.json" > "$dir/validation.log"
-  printf '%s\t%s\t%s\t%s\t%s\t%s\t%s\n' "$name" "$what" "$opts" "$seconds" "$(grep '^validation' "$dir/train.log")" "${ade[*]}" \
+  printf '%s\t%s\t%s\t%s\t%s\t%s\t%s\n' "$name" "$what" "$opts${changes:+, start $changes}" "$seconds" "$(grep '^validation' "$dir/train.log")" "${ade[*]}" \
       "$dir/validation/results.md" >> "$summary"
 done
 /usr/bin/python3 - "$summary" "$out" "$(git rev-parse --short HEAD)" <<'PY'
@@ -72,7 +92,7 @@ summary, out, commit = sys.argv[1:]
 rows = [l.rstrip("\n").split("\t") for l in open(summary) if l.strip()]
 L = ["# Learning from real recordings: protocol variants", "",
      "Produced by `benchmarks/learn_real_variants.sh` at commit %s on a 2-core Debian 12 machine." % commit, "",
-     "Each variant trains the crowd material from the default on the training runs of `benchmarks/learn_real.sh`",
+     "Each variant trains the crowd material from the default (or, where its options say \"start\", the default with those parameters) on the training runs of `benchmarks/learn_real.sh`",
      "(uo-050/100/180-180-180, uo-300-300-160, CrowdQueue 030) with each person's free speed as desired speed, and is",
      "held to issue 10's two yardsticks: ADE at 4 s on the five held-out runs (the recorded state every 4 s after the",
      "first 4 s, rolled forward 4 s: constant velocity / untrained default / the variant, metres; the variant in bold",
