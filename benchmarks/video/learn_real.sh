@@ -8,7 +8,7 @@
 # learned model. The same settings for every clip (none is tuned to a file): the clips have no
 # calibration, so a top-view scale of 0.05 m per pixel (a 480-pixel frame spans 24 m), particles
 # sampled at 2 persons/m2, clips of 1.2 s every 0.2 s (the shortest clip, 144 frames, leaves
-# 3.4 s for training), 120 Adam iterations at most, two clips a step.
+# 3.4 s for training), 120 Adam iterations at most, eight clips a step (fewer where the training part has fewer).
 # Usage: benchmarks/video/learn_real.sh [BUILD_DIR] [OUT_DIR] [VIDEO...]
 set -euo pipefail
 build=${1:-build}
@@ -26,7 +26,7 @@ for v in "${videos[@]}"; do
   name=$(basename "${v%.*}")
   mkdir -p "$out/$name"
   common=(--video "$v" --scale 0.05 --density 2 --threads 2 --quiet)
-  "$cli" train "${common[@]}" --clip-length 1.2 --stride 0.2 --iterations 120 --batch 2 --out "$out/$name/learned.json" | tail -1
+  "$cli" train "${common[@]}" --clip-length 1.2 --stride 0.2 --iterations 120 --batch 8 --out "$out/$name/learned.json" | tail -1
   "$cli" predict "${common[@]}" --model "$out/$name/learned.json" --out "$out/$name" > /dev/null
   /usr/bin/python3 - "$out/$name/prediction.json" "$name" <<'PY'
 import json, sys
