@@ -129,16 +129,16 @@ void headway_adjoint(const StepInputs& in, const NeighbourGrid& nb, const World&
     if (!(u > 0)) continue;
     const Vec2 e = w.heading[p];
     const Headway h = headway_point(nb, w, p, e, P.headway_width, headway_look(P, u));
-    const double g = (h.gap - P.headway_gap) / P.time_gap, V = std::max(0.0, g);
+    const double V = headway_speed(P, h.gap);
     if (!(V < u)) continue;
     const Vec2& ab = a_bar[p];
     const Vec2 c = (V - u) / P.tau * e;
     e_bar[p] += ab * ((V - u) / P.tau);
     u_bar[p] -= ab.dot(e) / P.tau;
     out.params.tau += ab.dot(-c / P.tau);
-    if (g > 0) {
+    if (V > 0) {  // V = (s - s0) / T
       const double V_bar = ab.dot(e) / P.tau, gap_bar = V_bar / P.time_gap;
-      out.params.time_gap += V_bar * (-g / P.time_gap);
+      out.params.time_gap += V_bar * (-V / P.time_gap);
       out.params.headway_gap -= gap_bar;
       const Vec2 r = w.x[h.q] - w.x[p];
       x_bar[h.q] += gap_bar * e;
