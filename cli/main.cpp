@@ -157,8 +157,9 @@ const char* kPredictHelp =
     "  --desired-speed observed|scenario|free\n"
     "                     desired speed of the observed people (default observed: each\n"
     "                     person's walking speed over the last second; free: the 90th\n"
-    "                     percentile of their walking speed along their track so far;\n"
-    "                     scenario: the group's), times v0_scale\n"
+    "                     percentile of their walking speed along their track so far,\n"
+    "                     each speed divided by the model's density-speed factor where\n"
+    "                     it has one; scenario: the group's), times v0_scale\n"
     "  --observe S        seconds of recording before the first window (default 2)\n"
     "  --horizon S        seconds to predict (default 4)\n"
     "  --stride S         seconds between window starts (default: the horizon)\n"
@@ -187,7 +188,9 @@ const char* kTrainHelp =
     "  --material KIND    start from the built-in defaults as crowd, fluid or social_force\n"
     "                     (the social force model is fitted with central differences)\n"
     "  --params LIST      comma-separated scalars to learn (default: all the kind has; crowd:\n"
-    "                     E,gamma,tension_scale,tau,v0_scale,comfort_distance,alignment_time;\n"
+    "                     E,gamma,tension_scale,tau,v0_scale,comfort_distance,alignment_time,\n"
+    "                     and time_gap, headway_gap, density_speed_gamma, density_speed_max\n"
+    "                     where the starting model has them on (above 0);\n"
     "                     fluid: the same without tension_scale; social_force:\n"
     "                     tau,v0_scale,sf_A,sf_B,sf_k,sf_kappa); 'none': only the network and\n"
     "                     the scenario's force terms marked \"learn\" (fitted terms are written\n"
@@ -215,7 +218,9 @@ const char* kTrainHelp =
     "                     desired speed of the recorded people: their own walking speed at\n"
     "                     the window's start (default), the scenario group's (drawn from its\n"
     "                     distribution if it has one), or each person's free speed (90th\n"
-    "                     percentile of their walking speed along their track so far), times v0_scale\n"
+    "                     percentile of their walking speed along their track so far, each\n"
+    "                     speed divided by the model's density-speed factor where it has\n"
+    "                     one: docs/learning.md), times v0_scale\n"
     "  --threads N        windows simulated and differentiated in parallel, one per thread;\n"
     "                     the model does not depend on N (default: the machine's cores)\n"
     "  --quiet            no progress lines\n"
@@ -654,7 +659,7 @@ int cmd_predict(const Args& a) {
     save_json_file(prediction_json(job, reports), a.out + "/prediction.json");
     // Paths of the first window: recorded, constant velocity, the first model given (else the default).
     long f0 = t.frame_min() + std::lround(o.observe * t.framerate);
-    ObservedState st = observe_at(t, f0, o.velocity_window, o.speed_window);
+    ObservedState st = observe_at(t, f0, o.velocity_window, o.speed_window, speed_history(t, o.speed_window));
     std::vector<double> times;
     for (long k = 1; k <= std::lround(o.horizon * t.framerate); ++k) times.push_back(static_cast<double>(k) / t.framerate);
     auto as_paths = [&](const std::vector<std::vector<Vec2>>& per_time) {

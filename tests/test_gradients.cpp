@@ -319,10 +319,11 @@ const char* kGradientScene = R"({"format": "crowdmpm-scenario", "version": 1, "n
   "groups": [{"spawn": {"rect": [1.0, 1.0, 3.0, 3.4]}, "count": 14, "desired_speed": 1.2,
               "behaviour": {"type": "goal", "target": "out"}}]})";
 
-Model gradient_model(double time_gap = 0, double headway_gap = 0) {
+Model gradient_model(double time_gap = 0, double headway_gap = 0, double density_gamma = 0) {
   Model m = Model::default_model();
   m.set("time_gap", time_gap);
   m.set("headway_gap", headway_gap);
+  m.set("density_speed_gamma", density_gamma);
   // The scene's contacts were laid out for these (the default model's comfort distance is
   // smaller): every part of the step stays active.
   m.set("comfort_distance", 0.3);
@@ -345,7 +346,8 @@ namespace {
 // every third network weight) and the initial x and v of every third agent. entering: two people
 // walk in from the left after steps 3 and 7 (WindowGradient::run's after_step), among the crowd
 // from then on; their entry state is data (J set to the crowd's, as a constant).
-double window_gradient_error(int steps, double time_gap = 0, bool entering = false, double headway_gap = 0) {
+double window_gradient_error(int steps, double time_gap = 0, bool entering = false, double headway_gap = 0,
+                             double density_gamma = 0) {
   const ScenarioDef s = ScenarioDef::parse_text(kGradientScene);
   Rng rng(99);
   std::vector<std::vector<Vec2>> target(steps + 1);
@@ -373,7 +375,7 @@ double window_gradient_error(int steps, double time_gap = 0, bool entering = fal
     ++entered;
   };
   {
-    auto sim = make_sim(gradient_model(time_gap));
+    auto sim = make_sim(gradient_model(time_gap, headway_gap, density_gamma));
     for (int k = 1; k <= steps; ++k)
       for (size_t p = 0; p < sim->world().size() + 2; ++p) target[static_cast<size_t>(k)].push_back(Vec2(4 * rng.uniform(), 4 * rng.uniform()));
   }
@@ -386,7 +388,7 @@ double window_gradient_error(int steps, double time_gap = 0, bool entering = fal
     }
     return L;
   };
-  Model model = gradient_model(time_gap, headway_gap);
+  Model model = gradient_model(time_gap, headway_gap, density_gamma);
   auto sim = make_sim(model);
   // The scene must exercise contacts and the traction network.
   REQUIRE(sim->pair_stats().pairs > 10);
@@ -504,6 +506,14 @@ TEST_CASE("12-step window gradient with a headway gap kept at standstill matches
   // headway_gap 0.1 m: speed <= (gap - 0.1) / T; its own gradient and time_gap's (now through
   // the shifted gap) against differences, with every other parameter and the initial state.
   CHECK(window_gradient_error(12, 0.8, false, 0.1) < 3e-5);
+}
+
+TEST_CASE("12-step window gradient with the material's density-speed law matches central differences", "[gradients]") {
+  // density_speed_gamma 1.913 (Weidmann), max density 5.4: the free speed times
+  // 1 - exp(-gamma (1/rho - 1/max)) at each person's local density (about 2-4 persons/m^2 in this
+  // group). Both law parameters against differences, and every initial x through the local
+  // density (local_density_vjp), with the headway adaptation on.
+  CHECK(window_gradient_error(12, 0.8, false, 0, 1.913) < 3e-5);
 }
 
 // The kernel adjoints chained by hand over two steps (a drive towards rest, pair traction, grid

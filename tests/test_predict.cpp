@@ -87,6 +87,79 @@ TEST_CASE("free speeds: the 90th percentile of a person's walking speed along th
   CHECK(s.free_speed[0] == Approx(1.5));
 }
 
+TEST_CASE("free speeds under a density-speed law: speeds divided by the law's factor at the density walked at", "[predict]") {
+  // Person 1 walks 0.5 m/s in +x through a block of 12 people standing 0.5 m apart (about 4
+  // persons/m^2 around them); person 20 walks 1.2 m/s alone, 30 m away.
+  std::ostringstream text;
+  text << "# framerate: 10\n";
+  for (int f = 0; f <= 40; ++f) {
+    text << "1 " << f << " " << 0.05 * f << " 1\n";
+    for (int k = 0; k < 12; ++k) text << 2 + k << " " << f << " " << 0.5 * (k % 4) << " " << 0.5 * (k / 4) << "\n";
+    text << "20 " << f << " " << 30 + 0.12 * f << " 30\n";
+  }
+  const TrajectorySet t = TrajectorySet::parse(text.str(), "block");
+  const auto h = speed_history(t, 1.0);
+  REQUIRE(h->by_id.count(1) == 1);
+  REQUIRE(h->by_id.count(20) == 1);
+  const std::vector<SpeedSample>& one = h->by_id.at(1);
+  REQUIRE(one.size() == 41 - 10);  // every frame with a point 1 s back
+  // Each sample's density is the mean of local_density at the two ends of its speed window.
+  const long f = one[5].frame;
+  auto density_at = [&](long frame) {
+    std::vector<Vec2> xs;
+    size_t me = 0;
+    for (auto [b, e] = t.frame(frame); b != e; ++b) {
+      if (b->id == 1) me = xs.size();
+      xs.emplace_back(b->x, b->y);
+    }
+    return local_density(xs, 0, kDensityRadius)[me];
+  };
+  CHECK(one[5].speed == Approx(0.5).epsilon(1e-6));
+  CHECK(one[5].density == Approx(0.5 * (density_at(f) + density_at(f - 10))).epsilon(1e-6));
+  CHECK(one[5].density > 2.5);
+  CHECK(h->by_id.at(20)[0].density == Approx(2 / M_PI).epsilon(1e-6));  // alone: only themselves
+  // Under Weidmann's law the walker in the block is freer than they walked; the lone walker is
+  // not slowed by anyone and keeps their speed (f = 1 - exp(-1.913 (pi/2 - 1/5.4)) = 0.93).
+  Model m = Model::default_model();
+  m.set("density_speed_gamma", 1.913);
+  m.set("density_speed_max", 5.4);
+  const auto free = free_speeds_by_law(*h, 40, m.params);
+  std::vector<double> expected;
+  for (const SpeedSample& x : one) {
+    TermPoint pt;
+    pt.density = x.density;
+    expected.push_back(x.speed / std::max(material_density_factor(m.params, pt), kLawFactorFloor));
+  }
+  std::sort(expected.begin(), expected.end());
+  CHECK(free.at(1) == Approx(expected[static_cast<size_t>(0.9 * static_cast<double>(expected.size()))]));
+  CHECK(free.at(1) > 0.5 / 0.8);
+  CHECK(free.at(20) == Approx(1.2 / (1 - std::exp(-1.913 * (M_PI / 2 - 1 / 5.4)))).epsilon(1e-4));
+  // Only samples up to the frame asked for; a free speed beyond the cap is cut to it.
+  CHECK(free_speeds_by_law(*h, 10, m.params).count(1) == 1);
+  CHECK(free_speeds_by_law(*h, 9, m.params).count(1) == 0);
+  m.set("density_speed_max", 2.5);  // the block is at the law's standstill: the factor's floor
+  CHECK(free_speeds_by_law(*h, 40, m.params).at(1) == Approx(std::min(0.5 / kLawFactorFloor, kLawFreeSpeedCap)));
+
+  // A window's agents take these free speeds as desired speeds with --desired-speed free when
+  // the model has the law, and the plain 90th percentile without it.
+  const ScenarioDef sc = window_scenario(ScenarioDef::parse_text(R"({"format": "crowdmpm-scenario", "version": 1,
+    "domain": {"min": [-5, -5], "max": [40, 35], "cell_size": 0.5}, "time": {"dt": 0.01, "duration": 10},
+    "groups": [{"count": 0, "spawn": {"rect": [0, 0, 1, 1]}, "behaviour": {"type": "heading"}}]})"), false);
+  const ObservedState s = observe_at(t, 40, 0.5, 1.0, h);
+  REQUIRE(s.ids.size() == 14);
+  auto desired_of = [&](const Model& model, long id) {
+    WindowSim ws = start_window(sc, model, s, WindowOptions{1, DesiredSpeed::Free});
+    for (size_t i = 0; i < s.ids.size(); ++i)
+      if (s.ids[i] == id) return ws.sim->world().v0[static_cast<size_t>(ws.sim->world().index_of(ws.ids[i]))];
+    return -1.0;
+  };
+  m.set("density_speed_max", 5.4);
+  CHECK(desired_of(m, 1) == Approx(free.at(1)));
+  CHECK(desired_of(m, 20) == Approx(free.at(20)));
+  CHECK(desired_of(Model::default_model(), 1) == Approx(0.5));
+  CHECK(desired_of(Model::default_model(), 20) == Approx(1.2));
+}
+
 TEST_CASE("a predictor that is off by a fixed offset reports that offset", "[predict]") {
   TrajectorySet t = straight_walkers();
   PredictOptions o;

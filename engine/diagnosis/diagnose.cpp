@@ -91,12 +91,13 @@ Split split_recording(const TrajectorySet& t, const DiagnoseOptions& d) {
   const long length = std::lround(d.window * t.framerate), stride = std::max(1L, std::lround(d.stride * t.framerate));
   const long history = std::lround(std::max(o.velocity_window, o.speed_window) * t.framerate);
   std::vector<TrainWindow> fit;
+  const auto speeds = o.desired_speed == DesiredSpeed::Free ? speed_history(t, o.speed_window) : nullptr;
   for (long f = t.skip_gap(s.train_from + history, stride); f + length <= s.train_to; f = t.skip_gap(f + stride, stride)) {
-    TrainWindow w = window_at(t, f, length, o);
+    TrainWindow w = window_at(t, f, length, o, 0, speeds);
     if (!w.start.ids.empty()) fit.push_back(std::move(w));
   }
   for (long f = t.skip_gap(s.heldout_from, stride); f + length <= s.heldout_to; f = t.skip_gap(f + stride, stride)) {
-    TrainWindow w = window_at(t, f, length, o);
+    TrainWindow w = window_at(t, f, length, o, 0, speeds);
     if (!w.start.ids.empty()) s.heldout.push_back(std::move(w));
   }
   // Early stopping of every fit looks at the training part's last quarter (windows that do not

@@ -78,10 +78,11 @@ ResidualSet recorded_residuals(const ScenarioDef& scenario, const Model& model, 
   const Rollouts p = plan(t, from, to, o);
   const Predictor predict = simulation_predictor(scenario, model, WindowOptions{1, o.desired_speed});
   const double h = static_cast<double>(p.end) / t.framerate, hm = static_cast<double>(p.mid) / t.framerate;
+  const auto history = o.desired_speed == DesiredSpeed::Free ? speed_history(t, o.speed_window) : nullptr;
   return over_rollouts(p, o.threads, [&](size_t i) {
     ResidualSet out;
     const long f0 = p.starts[i];
-    const ObservedState s = observe_at(t, f0, o.velocity_window, o.speed_window);
+    const ObservedState s = observe_at(t, f0, o.velocity_window, o.speed_window, history);
     if (s.ids.empty()) return out;
     const auto sim = predict(s, {h});
     const auto mid = recorded_at(t, f0 + p.mid, s.ids), end = recorded_at(t, f0 + p.end, s.ids);
@@ -105,10 +106,11 @@ ResidualSet null_residuals(const ScenarioDef& scenario, const Model& model, cons
   const double h = static_cast<double>(p.end) / t.framerate, hm = static_cast<double>(p.mid) / t.framerate;
   // Noise on a position makes noise sqrt(2) noise / window on the velocity taken over it.
   const double v_noise = std::sqrt(2.0) * noise / std::max(o.velocity_window, 1 / t.framerate);
+  const auto history = o.desired_speed == DesiredSpeed::Free ? speed_history(t, o.speed_window) : nullptr;
   return over_rollouts(p, o.threads, [&](size_t i) {
     ResidualSet out;
     const long f0 = p.starts[i];
-    const ObservedState s = observe_at(t, f0, o.velocity_window, o.speed_window);
+    const ObservedState s = observe_at(t, f0, o.velocity_window, o.speed_window, history);
     if (s.ids.empty()) return out;
     Rng rng(seed * 0x9E3779B97F4A7C15ULL + static_cast<uint64_t>(f0) * 7919 + 1);
     auto normal2 = [&rng]() {  // separate statements: the order of the draws is fixed

@@ -54,15 +54,16 @@ Eigen::Matrix4d local_jacobian(F&& f, const Eigen::Vector4d& at) {
 
 // Adjoint of drive_point for agent p of the stored state w (heading_prev: its heading before
 // the step): given a_bar = dL/da_p and h_bar = dL/dheading_p, adds dL/dx_p, dL/dv_p and the
-// gradients of tau, v0_scale and the force terms' parameters (f_own: scratch, one value a term). With e the desired direction,
-// f = prod_t f_t the terms' speed factors and a_t their accelerations:
+// gradients of tau, v0_scale, the material's density-speed law and the force terms' parameters
+// (f_own: scratch, one value a term). With e the desired direction, f = f_m prod_t f_t the
+// material's and the terms' speed factors and a_t the terms' accelerations:
 //   a = (s v0 f e - v) / tau + sum_t a_t;   heading = e (or v / |v| where e = 0).
 // The terms' parts are exact (their own vector-Jacobian products); e(x) comes from the
 // behaviour's navigation field, a pointwise function whose Jacobian is taken by central
 // differences (DESIGN.md section 4 allows local Jacobians of pointwise functions).
 void drive_adjoint(const StepInputs& in, const Behaviour& beh, const World& w, size_t p, const Vec2& heading_prev,
                    const std::vector<double>& density, const Vec2& a_bar, const Vec2& h_bar, double u_bar_later,
-                   Vec2& x_bar, Vec2& v_bar, ModelGradient& out, std::vector<double>& f_own) {
+                   Vec2& x_bar, Vec2& v_bar, double& density_bar, ModelGradient& out, std::vector<double>& f_own) {
   const MaterialParams& P = in.model.params;
   const Vec2 x = w.x[p], v = w.v[p];
   const TermPoint pt = terms_point(in, w, p, heading_prev, density);
@@ -70,7 +71,8 @@ void drive_adjoint(const StepInputs& in, const Behaviour& beh, const World& w, s
   const Vec2 e = desired_direction(in, beh, x, heading_prev);
   // The speed factors, each term's own and the product of the others'.
   f_own.assign(in.terms.size(), 1.0);
-  double f = 1;
+  const double f_material = material_density_factor(P, pt);
+  double f = f_material;
   for (size_t t = 0; t < in.terms.size(); ++t) {
     if (!in.terms[t].applies(pt.group)) continue;
     Vec2 unused = Vec2::Zero();
@@ -106,10 +108,15 @@ void drive_adjoint(const StepInputs& in, const Behaviour& beh, const World& w, s
     const Vec2 u = v.normalized();
     v_bar += (h_bar - h_bar.dot(u) * u) / v.norm();
   }
+  if (f_bar != 0 && material_density_law(P)) {
+    double terms_f = 1;
+    for (double ft : f_own) terms_f *= ft;
+    density_bar = material_density_factor_vjp(P, pt, f_bar * terms_f, out.params);
+  }
   for (size_t t = 0; t < in.terms.size(); ++t) {
     const Term& term = in.terms[t];
     if (!term.applies(pt.group)) continue;
-    double others = 1;
+    double others = f_material;
     for (size_t u = 0; u < in.terms.size(); ++u)
       if (u != t) others *= f_own[u];
     term.law->vjp(term.params.data(), pt, a_bar, f_bar * others, x_bar, v_bar, out.terms[t].data());
@@ -249,6 +256,7 @@ ModelGradient WindowGradient::run(Simulation& sim, int steps, const StateLossGra
   std::vector<Vec2> hx, he;  // the headway adjoint's dL/dx and dL/de
   std::vector<double> hu;    // and its dL/du
   std::vector<double> f_own;  // drive_adjoint's scratch: each term's speed factor
+  std::vector<double> density_bar;  // dL/d(local density) of each agent, from the material's density-speed law
   const MaterialParams& P = model.params;
   for (int k = steps - 1; k >= 0; --k) {
     if (checkpointing && (k == steps - 1 || k % K == K - 1)) {
@@ -316,16 +324,19 @@ ModelGradient WindowGradient::run(Simulation& sim, int steps, const StateLossGra
     headway_adjoint(in, nb, w, xadj.accel, hx, he, hu, out);
     in.time = step_time[static_cast<size_t>(k)];
     const std::vector<double> density = terms_density(in, w);
+    density_bar.assign(n, 0.0);
     for (size_t p = 0; p < n; ++p) {
       Vec2 gx = Vec2::Zero(), gv = Vec2::Zero();
       drive_adjoint(in, behaviours[static_cast<size_t>(w.behaviour[p])], w, p, st.heading[p], density, xadj.accel[p],
-                    tadj.heading[p] + he[p], hu[p], gx, gv, out, f_own);
+                    tadj.heading[p] + he[p], hu[p], gx, gv, density_bar[p], out, f_own);
       xb[p] = xadj.x[p] + tadj.x[p] + hx[p] + gx;
       vb[p] = xadj.v[p] + tadj.v[p] + gv;
       out.params.comfort_distance += tadj.comfort[p];
       Cb[p] = xadj.C[p];
       Jb[p] = xadj.J[p];
     }
+    // The material's density-speed law reads the local density, which the positions make.
+    if (material_density_law(P)) local_density_vjp(w, kDensityRadius, density_bar, xb);
   }
   if (checkpointing) {  // leave the simulation at the end of the window, as without checkpoints
     sim.set_clock(final_clock);

@@ -132,11 +132,12 @@ std::vector<std::pair<size_t, std::string>> ParamMap::term_parameter_names(const
   return out;
 }
 
-TrainWindow window_at(const TrajectorySet& t, long start, long length, const TrainOptions& o, size_t dataset) {
+TrainWindow window_at(const TrajectorySet& t, long start, long length, const TrainOptions& o, size_t dataset,
+                      std::shared_ptr<const SpeedHistory> history) {
   const double nan = std::numeric_limits<double>::quiet_NaN();
   TrainWindow w;
   w.dataset = dataset;
-  w.start = observe_at(t, start, o.velocity_window, o.speed_window);
+  w.start = observe_at(t, start, o.velocity_window, o.speed_window, std::move(history));
   if (w.start.ids.empty()) return w;
   w.framerate = t.framerate;
   std::vector<std::pair<long, size_t>> order;  // (recorded id, index in start)
@@ -173,12 +174,14 @@ void make_windows(const std::vector<TrainDataset>& data, const TrainOptions& o, 
       for (long f = t.skip_gap(t.frame_min() + history, stride); f + length <= t.frame_max(); f = t.skip_gap(f + stride, stride))
         starts.push_back(f);
       const size_t n_val = static_cast<size_t>(std::ceil(o.validation_fraction * static_cast<double>(starts.size())));
+      // Free speeds under a model's density-speed law read the whole recorded speed history.
+      const auto speeds = o.desired_speed == DesiredSpeed::Free ? speed_history(t, o.speed_window) : nullptr;
       const size_t n_train = starts.size() - std::min(starts.size(), n_val);
       const long val_start = n_train < starts.size() ? starts[n_train] : std::numeric_limits<long>::max();
       for (size_t i = 0; i < starts.size(); ++i) {
         const bool is_val = i >= n_train;
         if (!is_val && starts[i] + length > val_start) continue;
-        TrainWindow w = window_at(t, starts[i], length, o, d);
+        TrainWindow w = window_at(t, starts[i], length, o, d, speeds);
         if (w.start.ids.empty()) continue;
         (is_val ? validation : train).push_back(std::move(w));
       }

@@ -122,8 +122,10 @@ struct TrainWindow {
 };
 
 // The window of recording t starting at frame `start` and seen for `length` frames after it
-// (start.ids empty when nobody is recorded at `start` with enough history).
-TrainWindow window_at(const TrajectorySet& t, long start, long length, const TrainOptions& o, size_t dataset = 0);
+// (start.ids empty when nobody is recorded at `start` with enough history); history: the
+// recording's speed history for free speeds under a density-speed law (ObservedState::history).
+TrainWindow window_at(const TrajectorySet& t, long start, long length, const TrainOptions& o, size_t dataset = 0,
+                      std::shared_ptr<const SpeedHistory> history = nullptr);
 
 // Training and validation windows of the datasets (validation: the last share of each
 // recording; training windows that would overlap it in time are left out).

@@ -1,14 +1,18 @@
 #include "engine/observe/observe.hpp"
 
+#include "engine/sim/kernels.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <unordered_map>
 
 namespace crowdmpm {
 
-ObservedState observe_at(const TrajectorySet& t, long frame, double velocity_window, double speed_window) {
+ObservedState observe_at(const TrajectorySet& t, long frame, double velocity_window, double speed_window,
+                         std::shared_ptr<const SpeedHistory> history) {
   ObservedState s;
   s.frame = frame;
+  s.history = std::move(history);
   const long back = std::max(1L, std::lround(velocity_window * t.framerate));
   const long back_s = std::max(back, std::lround(speed_window * t.framerate));
   // Each person's latest recorded position at or before `target` frames, searching no further
@@ -16,7 +20,7 @@ ObservedState observe_at(const TrajectorySet& t, long frame, double velocity_win
   // have no row exactly `back` frames earlier).
   // Over the recorded rows, latest first (not over frame numbers: a recording may leave gaps
   // of any length between frames).
-  auto history = [&](long target, long limit) {
+  auto recorded_before = [&](long target, long limit) {
     std::unordered_map<long, std::pair<long, Vec2>> at;  // id -> (frame, position)
     const TrackPoint* first = t.frame(limit).first;
     if (limit > target) return at;
@@ -26,8 +30,8 @@ ObservedState observe_at(const TrajectorySet& t, long frame, double velocity_win
     }
     return at;
   };
-  const auto before = history(frame - back, frame - 2 * back);
-  const auto long_before = history(frame - back_s, frame - 2 * back_s);
+  const auto before = recorded_before(frame - back, frame - 2 * back);
+  const auto long_before = recorded_before(frame - back_s, frame - 2 * back_s);
   auto [b, e] = t.frame(frame);
   for (auto p = b; p != e; ++p) {
     auto it = before.find(p->id);
@@ -53,28 +57,79 @@ const char* desired_speed_name(DesiredSpeed d) {
   return d == DesiredSpeed::Scenario ? "scenario" : d == DesiredSpeed::Free ? "free" : "observed";
 }
 
-std::unordered_map<long, double> free_speeds(const TrajectorySet& t, double speed_window, long last) {
+namespace {
+// Calls visit(id, i, j, speed) for every recorded point i (an index into t.points) of frame at
+// most `last` whose track has a point j at least speed_window earlier (the latest such), with the
+// speed between them; each track in frame order.
+template <class Visit>
+void for_each_track_speed(const TrajectorySet& t, double speed_window, long last, Visit&& visit) {
   const long lag = std::max(1L, std::lround(speed_window * t.framerate));
-  std::unordered_map<long, std::vector<std::pair<long, Vec2>>> tracks;
-  for (const TrackPoint& p : t.points) {  // sorted by frame: each track in time order
-    if (p.frame > last) break;
-    tracks[p.id].emplace_back(p.frame, Vec2(p.x, p.y));
+  std::unordered_map<long, std::vector<size_t>> tracks;
+  for (size_t k = 0; k < t.points.size(); ++k) {  // sorted by frame: each track in time order
+    if (t.points[k].frame > last) break;
+    tracks[t.points[k].id].push_back(k);
   }
-  std::unordered_map<long, double> out;
   for (auto& [id, track] : tracks) {
-    std::vector<double> speeds;
     size_t j = 0;
     for (size_t i = 0; i < track.size(); ++i) {
-      while (j < i && track[i].first - track[j + 1].first >= lag) ++j;  // latest sample at least lag frames back
-      if (track[i].first - track[j].first < lag) continue;
-      speeds.push_back((track[i].second - track[j].second).norm() * t.framerate / static_cast<double>(track[i].first - track[j].first));
+      const TrackPoint& a = t.points[track[i]];
+      while (j < i && a.frame - t.points[track[j + 1]].frame >= lag) ++j;  // latest sample at least lag frames back
+      const TrackPoint& b = t.points[track[j]];
+      if (a.frame - b.frame < lag) continue;
+      visit(id, track[i], track[j], (Vec2(a.x, a.y) - Vec2(b.x, b.y)).norm() * t.framerate / static_cast<double>(a.frame - b.frame));
     }
-    if (speeds.empty()) continue;
-    const size_t k = std::min(speeds.size() - 1, static_cast<size_t>(0.9 * static_cast<double>(speeds.size())));
-    std::nth_element(speeds.begin(), speeds.begin() + static_cast<long>(k), speeds.end());
-    out[id] = speeds[k];
+  }
+}
+
+// The 90th percentile of speeds (reordered).
+double percentile90(std::vector<double>& speeds) {
+  const size_t k = std::min(speeds.size() - 1, static_cast<size_t>(0.9 * static_cast<double>(speeds.size())));
+  std::nth_element(speeds.begin(), speeds.begin() + static_cast<long>(k), speeds.end());
+  return speeds[k];
+}
+}  // namespace
+
+std::unordered_map<long, double> free_speeds(const TrajectorySet& t, double speed_window, long last) {
+  std::unordered_map<long, std::vector<double>> speeds;
+  for_each_track_speed(t, speed_window, last, [&](long id, size_t, size_t, double v) { speeds[id].push_back(v); });
+  std::unordered_map<long, double> out;
+  for (auto& [id, v] : speeds) out[id] = percentile90(v);
+  return out;
+}
+
+std::unordered_map<long, double> free_speeds_by_law(const SpeedHistory& h, long last, const MaterialParams& P) {
+  std::unordered_map<long, double> out;
+  std::vector<double> v;
+  TermPoint pt;
+  for (const auto& [id, samples] : h.by_id) {
+    v.clear();
+    for (const SpeedSample& x : samples) {
+      if (x.frame > last) break;
+      pt.density = x.density;
+      v.push_back(x.speed / std::max(material_density_factor(P, pt), kLawFactorFloor));
+    }
+    if (!v.empty()) out[id] = std::min(percentile90(v), kLawFreeSpeedCap);
   }
   return out;
+}
+
+std::shared_ptr<const SpeedHistory> speed_history(const TrajectorySet& t, double speed_window) {
+  // The local density at every recorded point, frame by frame.
+  std::vector<float> rho(t.points.size(), 0.0f);
+  std::vector<Vec2> at;
+  for (size_t b = 0; b < t.points.size();) {
+    size_t e = b;
+    at.clear();
+    for (; e < t.points.size() && t.points[e].frame == t.points[b].frame; ++e) at.emplace_back(t.points[e].x, t.points[e].y);
+    const std::vector<double> d = local_density(at, 0, kDensityRadius);
+    for (size_t k = b; k < e; ++k) rho[k] = static_cast<float>(d[k - b]);
+    b = e;
+  }
+  auto h = std::make_shared<SpeedHistory>();
+  for_each_track_speed(t, speed_window, std::numeric_limits<long>::max(), [&](long id, size_t i, size_t j, double v) {
+    h->by_id[id].push_back({t.points[i].frame, static_cast<float>(v), 0.5f * (rho[i] + rho[j])});
+  });
+  return h;
 }
 
 ScenarioDef window_scenario(const ScenarioDef& scenario, bool keep_exits) {
@@ -108,6 +163,12 @@ WindowSim start_window(const ScenarioDef& sc, const Model& model, const Observed
       nearest[i] = std::min(nearest[i], d);
       nearest[j] = std::min(nearest[j], d);
     }
+  std::unordered_map<long, double> law_free;
+  const std::unordered_map<long, double>* free_by_law = nullptr;
+  if (o.desired_speed == DesiredSpeed::Free && material_density_law(model.params) && s.history) {
+    law_free = free_speeds_by_law(*s.history, s.frame, model.params);
+    free_by_law = &law_free;
+  }
   std::vector<AgentDef> defs;
   std::vector<size_t> placed;  // index in s of each def
   for (size_t i = 0; i < s.x.size(); ++i) {
@@ -125,7 +186,8 @@ WindowSim start_window(const ScenarioDef& sc, const Model& model, const Observed
     // An observed speed beyond what the model allows (a tracking glitch) is clamped.
     const std::vector<double>& own = o.desired_speed == DesiredSpeed::Free ? s.free_speed : s.speed;
     a.desired_speed = o.desired_speed != DesiredSpeed::Scenario && i < own.size()
-                          ? std::clamp(own[i], 0.0, std::min(12.0, model.params.max_speed))
+                          ? std::clamp(free_by_law && free_by_law->count(s.ids[i]) ? std::max(free_by_law->at(s.ids[i]), s.speed[i]) : own[i],
+                                       0.0, std::min(12.0, model.params.max_speed))
                           : sim.draw_speed(sc.groups[0]);
     if (!std::isfinite(a.desired_speed)) a.desired_speed = 0;
     a.behaviour = sim.behaviour_of_group(0);

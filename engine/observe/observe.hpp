@@ -12,6 +12,29 @@
 
 namespace crowdmpm {
 
+// Every person's walking speed along their recorded track, with the local density they walked it
+// at: one sample per recorded frame, the speed over the speed window ending there (as
+// free_speeds), and the persons/m^2 around them (the kernel of local_density over
+// kDensityRadius, counting the recorded people, the mean of the window's two ends). What a
+// model with a density-speed law reads to tell a person's free speed from the speed a crowd held
+// them to (start_window).
+struct SpeedSample {
+  long frame;
+  float speed;    // m/s
+  float density;  // persons/m^2
+};
+struct SpeedHistory {
+  std::unordered_map<long, std::vector<SpeedSample>> by_id;  // in frame order
+};
+std::shared_ptr<const SpeedHistory> speed_history(const TrajectorySet& t, double speed_window);
+// Each person's free speed under a model's density-speed law (MaterialParams::density_speed_gamma
+// > 0): the 90th percentile, over their samples up to frame `last`, of speed / f(density), f the
+// law's factor, floored at kLawFactorFloor (a person at the law's standstill density tells
+// nothing of their free speed: tracking noise / f would), and at most kLawFreeSpeedCap.
+constexpr double kLawFactorFloor = 0.25;
+constexpr double kLawFreeSpeedCap = 2.2;  // m/s: Weidmann's free speeds N(1.34, 0.26) + 3.3 sd
+std::unordered_map<long, double> free_speeds_by_law(const SpeedHistory& h, long last, const MaterialParams& P);
+
 // The state of one recording window, ready to roll forward.
 struct ObservedState {
   long frame = 0;
@@ -21,9 +44,14 @@ struct ObservedState {
   // m/s: each person's free walking speed so far, the 90th percentile of their speed over the
   // speed window along their track up to this frame (free_speeds), and at least `speed`.
   std::vector<double> free_speed;
+  // The recording's speed history (speed_history), where the caller gave one: with it, a model
+  // with a density-speed law takes each person's free speed as the 90th percentile of their
+  // speed divided by the law's factor at the density they walked at (start_window).
+  std::shared_ptr<const SpeedHistory> history;
 };
 
-ObservedState observe_at(const TrajectorySet& t, long frame, double velocity_window, double speed_window = 1);
+ObservedState observe_at(const TrajectorySet& t, long frame, double velocity_window, double speed_window = 1,
+                         std::shared_ptr<const SpeedHistory> history = nullptr);
 
 // Each person's free walking speed, estimated as the 90th percentile of their speed over
 // speed_window (s) along their recorded track up to frame `last` (the person unhindered, on

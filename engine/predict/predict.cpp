@@ -48,11 +48,13 @@ PredictionReport evaluate_predictor(const std::string& method, const TrajectoryS
   std::vector<double> gv_sum(static_cast<size_t>(seconds), 0);
   std::vector<long> gv_n(static_cast<size_t>(seconds), 0);
   const long stride = std::max(1L, std::lround(o.stride * t.framerate));
+  // For predictors whose model has a density-speed law (free speeds under the law, start_window).
+  const auto history = speed_history(t, o.speed_window);
   for (long f0 = t.frame_min() + std::lround(o.observe * t.framerate); f0 + horizon_frames <= t.frame_max(); f0 += stride) {
     f0 = t.skip_gap(f0, stride);
     if (f0 + horizon_frames > t.frame_max()) break;
     if (o.max_windows > 0 && r.windows >= o.max_windows) break;
-    ObservedState s = observe_at(t, f0, o.velocity_window, o.speed_window);
+    ObservedState s = observe_at(t, f0, o.velocity_window, o.speed_window, history);
     if (s.ids.empty()) continue;
     std::vector<std::vector<Vec2>> pred = predict(s, times);
     std::unordered_map<long, size_t> index;

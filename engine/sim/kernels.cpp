@@ -133,7 +133,34 @@ TermPoint terms_point(const StepInputs& in, const World& w, size_t p, const Vec2
 }
 
 std::vector<double> terms_density(const StepInputs& in, const World& w) {
-  return terms_need_density(in.terms) ? local_density(w, 0, kDensityRadius) : std::vector<double>();
+  return terms_need_density(in.terms) || material_density_law(in.model.params) ? local_density(w, 0, kDensityRadius)
+                                                                                : std::vector<double>();
+}
+
+double material_density_factor(const MaterialParams& P, const TermPoint& pt) {
+  double f = 1;
+  if (!material_density_law(P)) return f;
+  const double law[2] = {P.density_speed_gamma, P.density_speed_max};
+  Vec2 unused = Vec2::Zero();
+  density_speed_term()->eval(law, pt, unused, f);
+  return f;
+}
+
+double material_density_factor_vjp(const MaterialParams& P, const TermPoint& pt, double f_bar, MaterialParams& grad) {
+  if (!material_density_law(P) || f_bar == 0) return 0;
+  const double law[2] = {P.density_speed_gamma, P.density_speed_max};
+  double law_bar[2] = {0, 0};
+  Vec2 x_bar = Vec2::Zero(), v_bar = Vec2::Zero();  // the law reads neither
+  density_speed_term()->vjp(law, pt, Vec2::Zero(), f_bar, x_bar, v_bar, law_bar);
+  grad.density_speed_gamma += law_bar[0];
+  grad.density_speed_max += law_bar[1];
+  // df/drho of the same law, a smooth function of one variable: central differences (DESIGN.md
+  // section 4 allows local derivatives of pointwise functions).
+  const double h = 1e-6 * std::max(pt.density, 1.0);
+  TermPoint up = pt, down = pt;
+  up.density += h;
+  down.density -= h;
+  return f_bar * (material_density_factor(P, up) - material_density_factor(P, down)) / (2 * h);
 }
 
 void drive_point(const StepInputs& in, const Behaviour& beh, const TermPoint& pt, double v0, Vec2& accel, Vec2& heading,
@@ -143,7 +170,7 @@ void drive_point(const StepInputs& in, const Behaviour& beh, const TermPoint& pt
   const Vec2& v = pt.v;
   const Vec2& prev_heading = pt.heading;
   Vec2 a = Vec2::Zero();
-  double factor = 1;
+  double factor = material_density_factor(P, pt);
   apply_terms(in.terms, pt, a, factor);
   Vec2 dir = desired_direction(in, beh, x, prev_heading);
   const double u = P.v0_scale * v0 * factor;  // the free speed

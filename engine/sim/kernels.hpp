@@ -118,7 +118,7 @@ Mat2 kirchhoff_stress(const Model& m, const Mat2& F, double J);
 // Unit desired direction of a behaviour at x (zero where the agent stands still).
 Vec2 desired_direction(const StepInputs& in, const Behaviour& b, const Vec2& x, const Vec2& heading);
 // One agent's drive, a_p = (s v0 f e - v) / tau + sum of the terms' accelerations, with f the
-// product of the terms' speed factors, and its heading; kernel_drive applies it to every agent.
+// product of the terms' speed factors and the material's density factor, and its heading; kernel_drive applies it to every agent.
 // pt: the agent's position, velocity, previous heading, group, the time, and its local density
 // and id for the terms (terms_point).
 void drive_point(const StepInputs& in, const Behaviour& beh, const TermPoint& pt, double v0, Vec2& accel, Vec2& heading,
@@ -126,8 +126,16 @@ void drive_point(const StepInputs& in, const Behaviour& beh, const TermPoint& pt
 // The TermPoint of agent p of w (density: local_density of the world when the terms need it,
 // else empty).
 TermPoint terms_point(const StepInputs& in, const World& w, size_t p, const Vec2& heading, const std::vector<double>& density);
-// The local densities the scenario's terms read (empty when none reads them).
+// The local densities the scenario's terms or the material's density-speed law read (empty when
+// none reads them).
 std::vector<double> terms_density(const StepInputs& in, const World& w);
+// The material's own density-speed law (density_speed_gamma > 0; the "density_speed" term's
+// formula with the model's gamma and max density): the factor f on the free speed at pt (1 when
+// off), and, given dL/df, adds dL/d(density_speed_gamma) and dL/d(density_speed_max) to grad and
+// returns dL/d(pt.density) (which local_density_vjp, world.hpp, takes on to the positions).
+inline bool material_density_law(const MaterialParams& P) { return P.density_speed_gamma > 0; }
+double material_density_factor(const MaterialParams& P, const TermPoint& pt);
+double material_density_factor_vjp(const MaterialParams& P, const TermPoint& pt, double f_bar, MaterialParams& grad);
 // Headway speed adaptation (model parameter time_gap T > 0; after Tordeux, Chraibi & Seyfried
 // 2016): people walk no faster than the gap to the nearest person ahead of them allows,
 //   V_p = min(u_p, max(0, (s_p - s0) / T)),  s_p = min over q ahead of (x_q - x_p) . e_p - r_p - r_q,

@@ -31,6 +31,8 @@ const std::vector<ParamInfo>& param_table() {
       {"headway_gap", &MaterialParams::headway_gap, 0, 1, "m", kContinuum, false},
       // A hard lane edge: no gradient, fixed in training.
       {"headway_width", &MaterialParams::headway_width, 0.05, 1, "1", kFixed, false},
+      {"density_speed_gamma", &MaterialParams::density_speed_gamma, 0, 50, "persons/m^2", kContinuum, false},
+      {"density_speed_max", &MaterialParams::density_speed_max, 0.5, 12, "persons/m^2", kContinuum, false},
       // Routes are recomputed from the crowd's density once a second; held fixed through a
       // gradient window (no adjoint of the route choice).
       {"route_congestion", &MaterialParams::route_congestion, 0, 4, "1", kFixed, false},
@@ -163,6 +165,10 @@ std::string ParamInfo::not_learnable_in(const Model& m) const {
     return m.params.time_gap == 0 ? "headway_gap belongs to the headway adaptation, which is off (time_gap 0)"
                                   : "headway_gap is 0 in the starting model: start from a value above 0 to learn it "
                                     "(it is learned in log coordinates)";
+  if ((field == &MaterialParams::density_speed_gamma || field == &MaterialParams::density_speed_max) &&
+      m.params.density_speed_gamma == 0)
+    return std::string(name) + " belongs to the density-speed law, which is off in the starting model "
+           "(density_speed_gamma 0): start from a value above 0 to learn it (it is learned in log coordinates)";
   if ((learned_by & (m.is_continuum() ? kContinuum : kSocialForce)) == 0)
     return std::string(name) + " is not learned by the " + material_name(m.material) + " model";
   return {};

@@ -33,6 +33,11 @@ struct MaterialParams {
   double time_gap = 0.8;         // s: T of the headway speed adaptation (0: off; model version 1: 0); speed <= gap ahead / T
   double headway_gap = 0;        // m: s0, the gap kept at standstill beyond the bodies: speed <= (gap ahead - s0) / T
   double headway_width = 0.5;    // lane half-width of the headway, as a fraction of r_p + r_q
+  // Desired speed falling with the local density (Weidmann 1993), part of the material: the free
+  // speed is multiplied by f = 1 - exp(-gamma s(1/rho - 1/max)) (the "density_speed" force
+  // term's law, terms/density_speed.cpp), rho the persons/m^2 within 1 m. gamma 0: off.
+  double density_speed_gamma = 0;  // persons/m^2 (Weidmann: 1.913)
+  double density_speed_max = 5.4;  // persons/m^2: where people stop
   // Route choice under congestion (Hughes 2002): goal routes minimise the travel cost
   // 1 + w (u_ref / v(rho) - 1) per metre, v(rho) the headway's speed at the local density; 0: the
   // shortest path (model version 1 and social_force's default).

@@ -11,7 +11,6 @@ const TermLaw* vortex_term();
 const TermLaw* obstacle_term();
 const TermLaw* slow_zone_term();
 const TermLaw* wall_friction_term();
-const TermLaw* density_speed_term();
 const TermLaw* counterflow_term();
 
 const std::vector<const TermLaw*>& term_laws() {

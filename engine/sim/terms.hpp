@@ -183,6 +183,9 @@ T smooth_box(const T* p, const T x[2], const T& edge) {
 
 // Every law the engine knows, by type name.
 const std::vector<const TermLaw*>& term_laws();
+// The "density_speed" law (Weidmann's relation), which the crowd material also applies itself
+// (MaterialParams::density_speed_gamma, kernels.hpp material_density_factor).
+const TermLaw* density_speed_term();
 const TermLaw* find_term_law(const std::string& type);  // nullptr if unknown
 
 // One term of a scenario: a law, its parameter values, which of them training fits, and the

@@ -54,13 +54,16 @@ void World::remove_at(size_t i) {
   swap_pop(pressure, i);
 }
 
-std::vector<double> local_density(const World& w, size_t first, double R) {
-  const size_t n = w.size();
-  std::vector<double> rho(first < n ? n - first : 0, 0.0);
-  if (rho.empty()) return rho;
+namespace {
+// Calls visit(p, q, r2) for every agent p of [first, n) and every agent q (p itself included)
+// with r2 = |x_q - x_p|^2 / R^2 < 1, p in increasing order (local_density and its adjoint).
+template <class Visit>
+void for_each_within(const std::vector<Vec2>& xs, size_t first, double R, Visit&& visit) {
+  const size_t n = xs.size();
+  if (first >= n) return;
   // Cell lists of size R over the bounding box of every agent.
-  Vec2 lo = w.x[0], hi = w.x[0];
-  for (const Vec2& x : w.x) {
+  Vec2 lo = xs[0], hi = xs[0];
+  for (const Vec2& x : xs) {
     lo = lo.cwiseMin(x);
     hi = hi.cwiseMax(x);
   }
@@ -77,27 +80,48 @@ std::vector<double> local_density(const World& w, size_t first, double R) {
   std::vector<long> start(static_cast<size_t>(nx * ny) + 1, 0), order(n), key(n);
   for (size_t p = 0; p < n; ++p) {
     long i, j;
-    cell_of(w.x[p], i, j);
+    cell_of(xs[p], i, j);
     key[p] = j * nx + i;
     ++start[static_cast<size_t>(key[p]) + 1];
   }
   for (size_t k = 1; k < start.size(); ++k) start[k] += start[k - 1];
   std::vector<long> cursor(start.begin(), start.end() - 1);
   for (size_t p = 0; p < n; ++p) order[static_cast<size_t>(cursor[static_cast<size_t>(key[p])]++)] = static_cast<long>(p);
-  const double norm = 2 / (M_PI * R * R), inv_r2 = 1 / (R * R);
+  const double inv_r2 = 1 / (R * R);
   for (size_t p = first; p < n; ++p) {
     long ci, cj;
-    cell_of(w.x[p], ci, cj);
-    double sum = 0;
+    cell_of(xs[p], ci, cj);
     for (long j = std::max(0L, cj - 1); j <= std::min(ny - 1, cj + 1); ++j)
       for (long i = std::max(0L, ci - 1); i <= std::min(nx - 1, ci + 1); ++i)
         for (long s = start[static_cast<size_t>(j * nx + i)]; s < start[static_cast<size_t>(j * nx + i) + 1]; ++s) {
-          const double r2 = (w.x[static_cast<size_t>(order[static_cast<size_t>(s)])] - w.x[p]).squaredNorm() * inv_r2;
-          if (r2 < 1) sum += 1 - r2;
+          const size_t q = static_cast<size_t>(order[static_cast<size_t>(s)]);
+          const double r2 = (xs[q] - xs[p]).squaredNorm() * inv_r2;
+          if (r2 < 1) visit(p, q, r2);
         }
-    rho[p - first] = norm * sum;
   }
+}
+}  // namespace
+
+std::vector<double> local_density(const std::vector<Vec2>& x, size_t first, double R) {
+  std::vector<double> rho(first < x.size() ? x.size() - first : 0, 0.0);
+  const double norm = 2 / (M_PI * R * R);
+  for_each_within(x, first, R, [&](size_t p, size_t, double r2) { rho[p - first] += 1 - r2; });
+  for (double& r : rho) r *= norm;
   return rho;
+}
+
+std::vector<double> local_density(const World& w, size_t first, double R) { return local_density(w.x, first, R); }
+
+void local_density_vjp(const World& w, double R, const std::vector<double>& rho_bar, std::vector<Vec2>& x_bar) {
+  // rho_p = norm sum_q (1 - |x_q - x_p|^2 / R^2): d rho_p / d x_q = -2 norm (x_q - x_p) / R^2,
+  // and the opposite for x_p.
+  const double c = 2 * 2 / (M_PI * R * R) / (R * R);
+  for_each_within(w.x, 0, R, [&](size_t p, size_t q, double) {
+    if (p == q || rho_bar[p] == 0) return;
+    const Vec2 g = rho_bar[p] * c * (w.x[q] - w.x[p]);
+    x_bar[q] -= g;
+    x_bar[p] += g;
+  });
 }
 
 void reference_volumes(World& w, size_t first, double rest_density) {

@@ -66,6 +66,11 @@ inline double hexagonal_spacing(double density) { return std::sqrt(2 / (std::sqr
 // with the kernel W(r) = 2 / (pi R^2) (1 - r^2 / R^2) for r < R, which integrates to 1 over the
 // plane: a uniform crowd gives its density, a person alone 2 / (pi R^2).
 std::vector<double> local_density(const World& w, size_t first, double R);
+// The same over the points x (recorded positions, ...): persons/m^2 at x[first..] among all of x.
+std::vector<double> local_density(const std::vector<Vec2>& x, size_t first, double R);
+// Its adjoint over every agent: given rho_bar[p] = dL/drho_p, adds dL/dx to x_bar. The kernel's
+// slope jumps at r = R (a neighbour entering the radius): exact away from it.
+void local_density_vjp(const World& w, double R, const std::vector<double>& rho_bar, std::vector<Vec2>& x_bar);
 
 // Model v2's reference volumes: J = clamp(rho0 / rho, j_min, 1) for the agents [first, size())
 // with rho their local_density over kDensityRadius, so that a crowd entering denser than rest
