@@ -511,8 +511,9 @@ TEST_CASE("12-step window gradient with a headway gap kept at standstill matches
 TEST_CASE("12-step window gradient with the material's density-speed law matches central differences", "[gradients]") {
   // density_speed_gamma 1.913 (Weidmann), max density 5.4: the free speed times
   // 1 - exp(-gamma (1/rho - 1/max)) at each person's local density (about 2-4 persons/m^2 in this
-  // group). Both law parameters against differences, and every initial x through the local
-  // density (local_density_vjp), with the headway adaptation on.
+  // group). Both law parameters against differences, and every initial x through the density
+  // ahead (local_density_ahead_vjp: positions, and the headings the previous step made), with the
+  // headway adaptation on.
   CHECK(window_gradient_error(12, 0.8, false, 0, 1.913) < 3e-5);
 }
 

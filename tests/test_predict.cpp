@@ -103,20 +103,29 @@ TEST_CASE("free speeds under a density-speed law: speeds divided by the law's fa
   REQUIRE(h->by_id.count(20) == 1);
   const std::vector<SpeedSample>& one = h->by_id.at(1);
   REQUIRE(one.size() == 41 - 10);  // every frame with a point 1 s back
-  // Each sample's density is the mean of local_density at the two ends of its speed window.
-  const long f = one[5].frame;
-  auto density_at = [&](long frame) {
-    std::vector<Vec2> xs;
-    size_t me = 0;
-    for (auto [b, e] = t.frame(frame); b != e; ++b) {
+  // Each sample's density is local_density_ahead where it ends, person 1 heading the way they
+  // walked (+x), the people standing without a heading.
+  std::vector<Vec2> xs, heading;
+  size_t me = 0;
+  auto scene_at = [&](long f) {
+    xs.clear();
+    heading.clear();
+    for (auto [b, e] = t.frame(f); b != e; ++b) {
       if (b->id == 1) me = xs.size();
       xs.emplace_back(b->x, b->y);
+      heading.push_back(b->id == 1 || b->id == 20 ? Vec2(1, 0) : Vec2::Zero());
     }
-    return local_density(xs, 0, kDensityRadius)[me];
   };
+  scene_at(one[5].frame);  // in the middle of the block (x = 0.75)
   CHECK(one[5].speed == Approx(0.5).epsilon(1e-6));
-  CHECK(one[5].density == Approx(0.5 * (density_at(f) + density_at(f - 10))).epsilon(1e-6));
+  CHECK(one[5].density == Approx(local_density_ahead(xs, heading, kDensityRadius)[me]).epsilon(1e-6));
   CHECK(one[5].density > 2.5);
+  // Leaving the block (x = 2, the block behind them): little ahead, and looking back the other
+  // way they would see the block.
+  scene_at(one.back().frame);
+  CHECK(one.back().density == Approx(local_density_ahead(xs, heading, kDensityRadius)[me]).epsilon(1e-6));
+  heading[me] = Vec2(-1, 0);
+  CHECK(local_density_ahead(xs, heading, kDensityRadius)[me] > one.back().density + 0.5);
   CHECK(h->by_id.at(20)[0].density == Approx(2 / M_PI).epsilon(1e-6));  // alone: only themselves
   // Under Weidmann's law the walker in the block is freer than they walked; the lone walker is
   // not slowed by anyone and keeps their speed (f = 1 - exp(-1.913 (pi/2 - 1/5.4)) = 0.93).
@@ -127,7 +136,7 @@ TEST_CASE("free speeds under a density-speed law: speeds divided by the law's fa
   std::vector<double> expected;
   for (const SpeedSample& x : one) {
     TermPoint pt;
-    pt.density = x.density;
+    pt.density_ahead = x.density;
     expected.push_back(x.speed / std::max(material_density_factor(m.params, pt), kLawFactorFloor));
   }
   std::sort(expected.begin(), expected.end());

@@ -243,6 +243,34 @@ TEST_CASE("local density counts a uniform crowd at its density, a person alone a
   CHECK(local_density(far, 3, 1.0).empty());
 }
 
+TEST_CASE("density ahead: a uniform crowd at its density whichever way people face, the queue behind counts for nothing", "[units]") {
+  // The hexagonal lattice at 5 persons/m^2 of the test above, everyone facing a different way.
+  const double rho = 5, a = std::sqrt(2 / (std::sqrt(3.0) * rho));
+  std::vector<Vec2> x, heading;
+  for (int j = 0; j * a * std::sqrt(3.0) / 2 < 20; ++j)
+    for (int i = 0; i * a < 20; ++i) {
+      x.emplace_back(i * a + 0.5 * a * (j & 1), j * a * std::sqrt(3.0) / 2);
+      const double angle = 0.7 * static_cast<double>(x.size());
+      heading.emplace_back(std::cos(angle), std::sin(angle));
+    }
+  const std::vector<double> ahead = local_density_ahead(x, heading, 1.0);
+  const std::vector<double> around = local_density(x, 0, 1.0);
+  for (size_t p = 0; p < x.size(); ++p)
+    if ((x[p] - Vec2(10, 10)).norm() < 5) CHECK(ahead[p] == Approx(around[p]).epsilon(0.1));
+  // At the front of the crowd, facing out: the people behind count for nothing (only those
+  // beside and the person themselves); facing back, the crowd counts about twice.
+  std::vector<Vec2> out(x.size(), Vec2(1, 0)), back(x.size(), Vec2(-1, 0));
+  const std::vector<double> front_out = local_density_ahead(x, out, 1.0), front_back = local_density_ahead(x, back, 1.0);
+  size_t front = 0;
+  for (size_t p = 0; p < x.size(); ++p)
+    if (std::abs(x[p].y() - 10) < 1 && x[p].x() > x[front].x()) front = p;
+  CHECK(front_out[front] < 0.6 * around[front]);  // 1.6 against 3.0 around (half a disc of the crowd)
+  CHECK(front_back[front] > 1.4 * around[front]);  // 4.4
+  // No heading: every neighbour weighs 1, as local_density.
+  const std::vector<double> none = local_density_ahead(x, std::vector<Vec2>(x.size(), Vec2::Zero()), 1.0);
+  for (size_t p = 0; p < x.size(); ++p) CHECK(none[p] == Approx(around[p]));
+}
+
 TEST_CASE("model version 2 starts a dense crowd compressed, version 1 at J = 1", "[units]") {
   const char* scene = R"({"format": "crowdmpm-scenario", "version": 1, "name": "dense",
     "domain": {"min": [0, 0], "max": [12, 12], "cell_size": 0.5}, "time": {"dt": 0.01, "duration": 1},

@@ -62,11 +62,12 @@ Eigen::Matrix4d local_jacobian(F&& f, const Eigen::Vector4d& at) {
 // behaviour's navigation field, a pointwise function whose Jacobian is taken by central
 // differences (DESIGN.md section 4 allows local Jacobians of pointwise functions).
 void drive_adjoint(const StepInputs& in, const Behaviour& beh, const World& w, size_t p, const Vec2& heading_prev,
-                   const std::vector<double>& density, const Vec2& a_bar, const Vec2& h_bar, double u_bar_later,
-                   Vec2& x_bar, Vec2& v_bar, double& density_bar, ModelGradient& out, std::vector<double>& f_own) {
+                   const std::vector<double>& density, const std::vector<double>& ahead, const Vec2& a_bar,
+                   const Vec2& h_bar, double u_bar_later, Vec2& x_bar, Vec2& v_bar, double& density_bar, ModelGradient& out,
+                   std::vector<double>& f_own) {
   const MaterialParams& P = in.model.params;
   const Vec2 x = w.x[p], v = w.v[p];
-  const TermPoint pt = terms_point(in, w, p, heading_prev, density);
+  const TermPoint pt = terms_point(in, w, p, heading_prev, density, ahead);
   const bool driven = beh.kind != Behaviour::Kind::None;
   const Vec2 e = desired_direction(in, beh, x, heading_prev);
   // The speed factors, each term's own and the product of the others'.
@@ -256,7 +257,11 @@ ModelGradient WindowGradient::run(Simulation& sim, int steps, const StateLossGra
   std::vector<Vec2> hx, he;  // the headway adjoint's dL/dx and dL/de
   std::vector<double> hu;    // and its dL/du
   std::vector<double> f_own;  // drive_adjoint's scratch: each term's speed factor
-  std::vector<double> density_bar;  // dL/d(local density) of each agent, from the material's density-speed law
+  std::vector<double> density_bar;  // dL/d(density ahead) of each agent, from the material's density-speed law
+  // dL/d(heading before step k) through the density ahead: taken on as dL/d(heading after step
+  // k - 1) by the drive adjoint of step k - 1 (agents entering during the window keep their entry
+  // heading: data, dropped with their other entry state).
+  std::vector<Vec2> heading_bar, heading_bar_later;
   const MaterialParams& P = model.params;
   for (int k = steps - 1; k >= 0; --k) {
     if (checkpointing && (k == steps - 1 || k % K == K - 1)) {
@@ -324,19 +329,24 @@ ModelGradient WindowGradient::run(Simulation& sim, int steps, const StateLossGra
     headway_adjoint(in, nb, w, xadj.accel, hx, he, hu, out);
     in.time = step_time[static_cast<size_t>(k)];
     const std::vector<double> density = terms_density(in, w);
+    const std::vector<double> ahead = material_density(in, st.x, st.heading);
     density_bar.assign(n, 0.0);
+    heading_bar_later.resize(n, Vec2::Zero());
     for (size_t p = 0; p < n; ++p) {
       Vec2 gx = Vec2::Zero(), gv = Vec2::Zero();
-      drive_adjoint(in, behaviours[static_cast<size_t>(w.behaviour[p])], w, p, st.heading[p], density, xadj.accel[p],
-                    tadj.heading[p] + he[p], hu[p], gx, gv, density_bar[p], out, f_own);
+      drive_adjoint(in, behaviours[static_cast<size_t>(w.behaviour[p])], w, p, st.heading[p], density, ahead, xadj.accel[p],
+                    tadj.heading[p] + he[p] + heading_bar_later[p], hu[p], gx, gv, density_bar[p], out, f_own);
       xb[p] = xadj.x[p] + tadj.x[p] + hx[p] + gx;
       vb[p] = xadj.v[p] + tadj.v[p] + gv;
       out.params.comfort_distance += tadj.comfort[p];
       Cb[p] = xadj.C[p];
       Jb[p] = xadj.J[p];
     }
-    // The material's density-speed law reads the local density, which the positions make.
-    if (material_density_law(P)) local_density_vjp(w, kDensityRadius, density_bar, xb);
+    // The material's density-speed law reads the density ahead, which the positions and the
+    // headings before the step make.
+    heading_bar.assign(n, Vec2::Zero());
+    if (material_density_law(P)) local_density_ahead_vjp(st.x, st.heading, kDensityRadius, density_bar, xb, heading_bar);
+    heading_bar_later.swap(heading_bar);
   }
   if (checkpointing) {  // leave the simulation at the end of the window, as without checkpoints
     sim.set_clock(final_clock);

@@ -105,7 +105,7 @@ std::unordered_map<long, double> free_speeds_by_law(const SpeedHistory& h, long 
     v.clear();
     for (const SpeedSample& x : samples) {
       if (x.frame > last) break;
-      pt.density = x.density;
+      pt.density_ahead = x.density;
       v.push_back(x.speed / std::max(material_density_factor(P, pt), kLawFactorFloor));
     }
     if (!v.empty()) out[id] = std::min(percentile90(v), kLawFreeSpeedCap);
@@ -114,20 +114,30 @@ std::unordered_map<long, double> free_speeds_by_law(const SpeedHistory& h, long 
 }
 
 std::shared_ptr<const SpeedHistory> speed_history(const TrajectorySet& t, double speed_window) {
-  // The local density at every recorded point, frame by frame.
+  // Each recorded point's walking direction (over the speed window; zero where the track is
+  // shorter or the person stands), then the density ahead at every point, frame by frame.
+  std::vector<Vec2> heading(t.points.size(), Vec2::Zero());
+  for_each_track_speed(t, speed_window, std::numeric_limits<long>::max(), [&](long, size_t i, size_t j, double) {
+    const Vec2 d(t.points[i].x - t.points[j].x, t.points[i].y - t.points[j].y);
+    if (d.squaredNorm() > 0) heading[i] = d.normalized();
+  });
   std::vector<float> rho(t.points.size(), 0.0f);
-  std::vector<Vec2> at;
+  std::vector<Vec2> at, dir;
   for (size_t b = 0; b < t.points.size();) {
     size_t e = b;
     at.clear();
-    for (; e < t.points.size() && t.points[e].frame == t.points[b].frame; ++e) at.emplace_back(t.points[e].x, t.points[e].y);
-    const std::vector<double> d = local_density(at, 0, kDensityRadius);
+    dir.clear();
+    for (; e < t.points.size() && t.points[e].frame == t.points[b].frame; ++e) {
+      at.emplace_back(t.points[e].x, t.points[e].y);
+      dir.push_back(heading[e]);
+    }
+    const std::vector<double> d = local_density_ahead(at, dir, kDensityRadius);
     for (size_t k = b; k < e; ++k) rho[k] = static_cast<float>(d[k - b]);
     b = e;
   }
   auto h = std::make_shared<SpeedHistory>();
-  for_each_track_speed(t, speed_window, std::numeric_limits<long>::max(), [&](long id, size_t i, size_t j, double v) {
-    h->by_id[id].push_back({t.points[i].frame, static_cast<float>(v), 0.5f * (rho[i] + rho[j])});
+  for_each_track_speed(t, speed_window, std::numeric_limits<long>::max(), [&](long id, size_t i, size_t, double v) {
+    h->by_id[id].push_back({t.points[i].frame, static_cast<float>(v), rho[i]});
   });
   return h;
 }

@@ -12,16 +12,16 @@
 
 namespace crowdmpm {
 
-// Every person's walking speed along their recorded track, with the local density they walked it
-// at: one sample per recorded frame, the speed over the speed window ending there (as
-// free_speeds), and the persons/m^2 around them (the kernel of local_density over
-// kDensityRadius, counting the recorded people, the mean of the window's two ends). What a
+// Every person's walking speed along their recorded track, with the density ahead of them: one
+// sample per recorded frame, the speed over the speed window ending there (as free_speeds), and
+// the persons/m^2 ahead of them there (local_density_ahead over kDensityRadius among the recorded
+// people, each heading the direction walked over the speed window; zero where they stand). What a
 // model with a density-speed law reads to tell a person's free speed from the speed a crowd held
 // them to (start_window).
 struct SpeedSample {
   long frame;
   float speed;    // m/s
-  float density;  // persons/m^2
+  float density;  // persons/m^2 ahead
 };
 struct SpeedHistory {
   std::unordered_map<long, std::vector<SpeedSample>> by_id;  // in frame order

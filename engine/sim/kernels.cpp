@@ -125,16 +125,21 @@ Vec2 desired_direction(const StepInputs& in, const Behaviour& b, const Vec2& x, 
   return Vec2::Zero();
 }
 
-TermPoint terms_point(const StepInputs& in, const World& w, size_t p, const Vec2& heading, const std::vector<double>& density) {
+TermPoint terms_point(const StepInputs& in, const World& w, size_t p, const Vec2& heading, const std::vector<double>& density,
+                      const std::vector<double>& ahead) {
   TermPoint pt{w.x[p], w.v[p], heading, w.group[p], in.time};
   pt.density = density.empty() ? 0.0 : density[p];
+  pt.density_ahead = ahead.empty() ? 0.0 : ahead[p];
   pt.id = w.id[p];
   return pt;
 }
 
 std::vector<double> terms_density(const StepInputs& in, const World& w) {
-  return terms_need_density(in.terms) || material_density_law(in.model.params) ? local_density(w, 0, kDensityRadius)
-                                                                                : std::vector<double>();
+  return terms_need_density(in.terms) ? local_density(w, 0, kDensityRadius) : std::vector<double>();
+}
+
+std::vector<double> material_density(const StepInputs& in, const std::vector<Vec2>& x, const std::vector<Vec2>& heading) {
+  return material_density_law(in.model.params) ? local_density_ahead(x, heading, kDensityRadius) : std::vector<double>();
 }
 
 double material_density_factor(const MaterialParams& P, const TermPoint& pt) {
@@ -142,7 +147,9 @@ double material_density_factor(const MaterialParams& P, const TermPoint& pt) {
   if (!material_density_law(P)) return f;
   const double law[2] = {P.density_speed_gamma, P.density_speed_max};
   Vec2 unused = Vec2::Zero();
-  density_speed_term()->eval(law, pt, unused, f);
+  TermPoint at = pt;
+  at.density = pt.density_ahead;
+  density_speed_term()->eval(law, at, unused, f);
   return f;
 }
 
@@ -151,15 +158,17 @@ double material_density_factor_vjp(const MaterialParams& P, const TermPoint& pt,
   const double law[2] = {P.density_speed_gamma, P.density_speed_max};
   double law_bar[2] = {0, 0};
   Vec2 x_bar = Vec2::Zero(), v_bar = Vec2::Zero();  // the law reads neither
-  density_speed_term()->vjp(law, pt, Vec2::Zero(), f_bar, x_bar, v_bar, law_bar);
+  TermPoint at = pt;
+  at.density = pt.density_ahead;
+  density_speed_term()->vjp(law, at, Vec2::Zero(), f_bar, x_bar, v_bar, law_bar);
   grad.density_speed_gamma += law_bar[0];
   grad.density_speed_max += law_bar[1];
   // df/drho of the same law, a smooth function of one variable: central differences (DESIGN.md
   // section 4 allows local derivatives of pointwise functions).
-  const double h = 1e-6 * std::max(pt.density, 1.0);
+  const double h = 1e-6 * std::max(pt.density_ahead, 1.0);
   TermPoint up = pt, down = pt;
-  up.density += h;
-  down.density -= h;
+  up.density_ahead += h;
+  down.density_ahead -= h;
   return f_bar * (material_density_factor(P, up) - material_density_factor(P, down)) / (2 * h);
 }
 
@@ -185,9 +194,10 @@ void drive_point(const StepInputs& in, const Behaviour& beh, const TermPoint& pt
 
 void kernel_drive(const StepInputs& in, World& w, ThreadPool& pool) {
   const std::vector<double> density = terms_density(in, w);
+  const std::vector<double> ahead = material_density(in, w.x, w.heading);  // before the headings change
   pool.parallel_for(w.size(), [&](size_t b, size_t e) {
     for (size_t p = b; p < e; ++p)
-      drive_point(in, in.behaviours[w.behaviour[p]], terms_point(in, w, p, w.heading[p], density), w.v0[p], w.accel[p],
+      drive_point(in, in.behaviours[w.behaviour[p]], terms_point(in, w, p, w.heading[p], density, ahead), w.v0[p], w.accel[p],
                   w.heading[p], w.free_speed[p]);
   });
 }

@@ -123,16 +123,20 @@ Vec2 desired_direction(const StepInputs& in, const Behaviour& b, const Vec2& x, 
 // and id for the terms (terms_point).
 void drive_point(const StepInputs& in, const Behaviour& beh, const TermPoint& pt, double v0, Vec2& accel, Vec2& heading,
                  double& free_speed);
-// The TermPoint of agent p of w (density: local_density of the world when the terms need it,
-// else empty).
-TermPoint terms_point(const StepInputs& in, const World& w, size_t p, const Vec2& heading, const std::vector<double>& density);
-// The local densities the scenario's terms or the material's density-speed law read (empty when
-// none reads them).
+// The TermPoint of agent p of w (density: terms_density, ahead: material_density; each may be
+// empty).
+TermPoint terms_point(const StepInputs& in, const World& w, size_t p, const Vec2& heading, const std::vector<double>& density,
+                      const std::vector<double>& ahead);
+// The local densities the scenario's terms read (empty when none reads them).
 std::vector<double> terms_density(const StepInputs& in, const World& w);
+// The densities ahead (local_density_ahead at positions x with the headings before the step) that
+// the material's density-speed law reads (empty when the model has none).
+std::vector<double> material_density(const StepInputs& in, const std::vector<Vec2>& x, const std::vector<Vec2>& heading);
 // The material's own density-speed law (density_speed_gamma > 0; the "density_speed" term's
-// formula with the model's gamma and max density): the factor f on the free speed at pt (1 when
-// off), and, given dL/df, adds dL/d(density_speed_gamma) and dL/d(density_speed_max) to grad and
-// returns dL/d(pt.density) (which local_density_vjp, world.hpp, takes on to the positions).
+// formula with the model's gamma and max density, at the density ahead of the person,
+// pt.density_ahead): the factor f on the free speed at pt (1 when off), and, given dL/df, adds
+// dL/d(density_speed_gamma) and dL/d(density_speed_max) to grad and returns dL/d(pt.density_ahead)
+// (which local_density_ahead_vjp, world.hpp, takes on to the positions and headings).
 inline bool material_density_law(const MaterialParams& P) { return P.density_speed_gamma > 0; }
 double material_density_factor(const MaterialParams& P, const TermPoint& pt);
 double material_density_factor_vjp(const MaterialParams& P, const TermPoint& pt, double f_bar, MaterialParams& grad);

@@ -35,7 +35,8 @@ struct MaterialParams {
   double headway_width = 0.5;    // lane half-width of the headway, as a fraction of r_p + r_q
   // Desired speed falling with the local density (Weidmann 1993), part of the material: the free
   // speed is multiplied by f = 1 - exp(-gamma s(1/rho - 1/max)) (the "density_speed" force
-  // term's law, terms/density_speed.cpp), rho the persons/m^2 within 1 m. gamma 0: off.
+  // term's law, terms/density_speed.cpp), rho the persons/m^2 ahead of the person within 1 m
+  // (local_density_ahead, world.hpp: people behind do not count). gamma 0: off.
   double density_speed_gamma = 0;  // persons/m^2 (Weidmann: 1.913)
   double density_speed_max = 5.4;  // persons/m^2: where people stop
   // Route choice under congestion (Hughes 2002): goal routes minimise the travel cost

@@ -56,7 +56,7 @@ void World::remove_at(size_t i) {
 
 namespace {
 // Calls visit(p, q, r2) for every agent p of [first, n) and every agent q (p itself included)
-// with r2 = |x_q - x_p|^2 / R^2 < 1, p in increasing order (local_density and its adjoint).
+// with r2 = |x_q - x_p|^2 / R^2 < 1, p in increasing order (local_density, local_density_ahead and its adjoint).
 template <class Visit>
 void for_each_within(const std::vector<Vec2>& xs, size_t first, double R, Visit&& visit) {
   const size_t n = xs.size();
@@ -112,15 +112,39 @@ std::vector<double> local_density(const std::vector<Vec2>& x, size_t first, doub
 
 std::vector<double> local_density(const World& w, size_t first, double R) { return local_density(w.x, first, R); }
 
-void local_density_vjp(const World& w, double R, const std::vector<double>& rho_bar, std::vector<Vec2>& x_bar) {
-  // rho_p = norm sum_q (1 - |x_q - x_p|^2 / R^2): d rho_p / d x_q = -2 norm (x_q - x_p) / R^2,
-  // and the opposite for x_p.
-  const double c = 2 * 2 / (M_PI * R * R) / (R * R);
-  for_each_within(w.x, 0, R, [&](size_t p, size_t q, double) {
+namespace {
+// The weight of neighbour q at r = x_q - x_p (0 < |r| < R) seen with heading e, and its
+// derivatives along r and e: W = (1 - |r|^2/R^2)(1 + r.e/|r|).
+double ahead_weight(const Vec2& r, const Vec2& e, double R, Vec2* dr, Vec2* de) {
+  const double n = r.norm(), a = 1 - r.squaredNorm() / (R * R);
+  if (!(n > 0)) return a;  // the agent itself
+  const double c = r.dot(e) / n;
+  if (dr) *dr = (1 + c) * (-2 / (R * R)) * r + a * (e - c * r / n) / n;
+  if (de) *de = a * r / n;
+  return a * (1 + c);
+}
+}  // namespace
+
+std::vector<double> local_density_ahead(const std::vector<Vec2>& x, const std::vector<Vec2>& heading, double R) {
+  std::vector<double> rho(x.size(), 0.0);
+  const double norm = 2 / (M_PI * R * R);
+  for_each_within(x, 0, R, [&](size_t p, size_t q, double) {
+    rho[p] += ahead_weight(x[q] - x[p], heading[p], R, nullptr, nullptr);
+  });
+  for (double& r : rho) r *= norm;
+  return rho;
+}
+
+void local_density_ahead_vjp(const std::vector<Vec2>& x, const std::vector<Vec2>& heading, double R,
+                             const std::vector<double>& rho_bar, std::vector<Vec2>& x_bar, std::vector<Vec2>& heading_bar) {
+  const double norm = 2 / (M_PI * R * R);
+  for_each_within(x, 0, R, [&](size_t p, size_t q, double) {
     if (p == q || rho_bar[p] == 0) return;
-    const Vec2 g = rho_bar[p] * c * (w.x[q] - w.x[p]);
-    x_bar[q] -= g;
-    x_bar[p] += g;
+    Vec2 dr = Vec2::Zero(), de = Vec2::Zero();
+    ahead_weight(x[q] - x[p], heading[p], R, &dr, &de);
+    x_bar[q] += rho_bar[p] * norm * dr;
+    x_bar[p] -= rho_bar[p] * norm * dr;
+    heading_bar[p] += rho_bar[p] * norm * de;
   });
 }
 

@@ -68,9 +68,14 @@ inline double hexagonal_spacing(double density) { return std::sqrt(2 / (std::sqr
 std::vector<double> local_density(const World& w, size_t first, double R);
 // The same over the points x (recorded positions, ...): persons/m^2 at x[first..] among all of x.
 std::vector<double> local_density(const std::vector<Vec2>& x, size_t first, double R);
-// Its adjoint over every agent: given rho_bar[p] = dL/drho_p, adds dL/dx to x_bar. The kernel's
-// slope jumps at r = R (a neighbour entering the radius): exact away from it.
-void local_density_vjp(const World& w, double R, const std::vector<double>& rho_bar, std::vector<Vec2>& x_bar);
+// The density ahead of each point: the same kernel, neighbour q weighted by 1 + cos of the angle
+// between x_q - x_p and heading p (unit, or zero: every neighbour weighs 1), the point itself by 1.
+// A uniform crowd gives its density; people behind count for nothing, people straight ahead twice.
+std::vector<double> local_density_ahead(const std::vector<Vec2>& x, const std::vector<Vec2>& heading, double R);
+// Its adjoint: given rho_bar[p] = dL/drho_p, adds dL/dx to x_bar and dL/dheading to heading_bar.
+// The kernel's slope jumps at r = R (a neighbour entering the radius): exact away from it.
+void local_density_ahead_vjp(const std::vector<Vec2>& x, const std::vector<Vec2>& heading, double R,
+                             const std::vector<double>& rho_bar, std::vector<Vec2>& x_bar, std::vector<Vec2>& heading_bar);
 
 // Model v2's reference volumes: J = clamp(rho0 / rho, j_min, 1) for the agents [first, size())
 // with rho their local_density over kDensityRadius, so that a crowd entering denser than rest
