@@ -91,7 +91,7 @@ Split split_recording(const TrajectorySet& t, const DiagnoseOptions& d) {
   const long length = std::lround(d.window * t.framerate), stride = std::max(1L, std::lround(d.stride * t.framerate));
   const long history = std::lround(std::max(o.velocity_window, o.speed_window) * t.framerate);
   std::vector<TrainWindow> fit;
-  const auto speeds = o.desired_speed == DesiredSpeed::Free ? speed_history(t, o.speed_window) : nullptr;
+  const auto speeds = speed_history_for(t, o.speed_window, o.desired_speed);
   for (long f = t.skip_gap(s.train_from + history, stride); f + length <= s.train_to; f = t.skip_gap(f + stride, stride)) {
     TrainWindow w = window_at(t, f, length, o, 0, speeds);
     if (!w.start.ids.empty()) fit.push_back(std::move(w));

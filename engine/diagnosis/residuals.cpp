@@ -78,7 +78,7 @@ ResidualSet recorded_residuals(const ScenarioDef& scenario, const Model& model, 
   const Rollouts p = plan(t, from, to, o);
   const Predictor predict = simulation_predictor(scenario, model, WindowOptions{1, o.desired_speed});
   const double h = static_cast<double>(p.end) / t.framerate, hm = static_cast<double>(p.mid) / t.framerate;
-  const auto history = o.desired_speed == DesiredSpeed::Free ? speed_history(t, o.speed_window) : nullptr;
+  const auto history = speed_history_for(t, o.speed_window, o.desired_speed);
   return over_rollouts(p, o.threads, [&](size_t i) {
     ResidualSet out;
     const long f0 = p.starts[i];
@@ -106,7 +106,7 @@ ResidualSet null_residuals(const ScenarioDef& scenario, const Model& model, cons
   const double h = static_cast<double>(p.end) / t.framerate, hm = static_cast<double>(p.mid) / t.framerate;
   // Noise on a position makes noise sqrt(2) noise / window on the velocity taken over it.
   const double v_noise = std::sqrt(2.0) * noise / std::max(o.velocity_window, 1 / t.framerate);
-  const auto history = o.desired_speed == DesiredSpeed::Free ? speed_history(t, o.speed_window) : nullptr;
+  const auto history = speed_history_for(t, o.speed_window, o.desired_speed);
   return over_rollouts(p, o.threads, [&](size_t i) {
     ResidualSet out;
     const long f0 = p.starts[i];

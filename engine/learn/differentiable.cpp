@@ -344,9 +344,11 @@ ModelGradient WindowGradient::run(Simulation& sim, int steps, const StateLossGra
     }
     // The material's density-speed law reads the density ahead, which the positions and the
     // headings before the step make.
-    heading_bar.assign(n, Vec2::Zero());
-    if (material_density_law(P)) local_density_ahead_vjp(st.x, st.heading, kDensityRadius, density_bar, xb, heading_bar);
-    heading_bar_later.swap(heading_bar);
+    if (material_density_law(P)) {
+      heading_bar.assign(n, Vec2::Zero());
+      local_density_ahead_vjp(st.x, st.heading, kDensityRadius, density_bar, xb, heading_bar);
+      heading_bar_later.swap(heading_bar);
+    }
   }
   if (checkpointing) {  // leave the simulation at the end of the window, as without checkpoints
     sim.set_clock(final_clock);

@@ -175,7 +175,7 @@ void make_windows(const std::vector<TrainDataset>& data, const TrainOptions& o, 
         starts.push_back(f);
       const size_t n_val = static_cast<size_t>(std::ceil(o.validation_fraction * static_cast<double>(starts.size())));
       // Free speeds under a model's density-speed law read the whole recorded speed history.
-      const auto speeds = o.desired_speed == DesiredSpeed::Free ? speed_history(t, o.speed_window) : nullptr;
+      const auto speeds = speed_history_for(t, o.speed_window, o.desired_speed);
       const size_t n_train = starts.size() - std::min(starts.size(), n_val);
       const long val_start = n_train < starts.size() ? starts[n_train] : std::numeric_limits<long>::max();
       for (size_t i = 0; i < starts.size(); ++i) {

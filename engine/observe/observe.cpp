@@ -114,13 +114,21 @@ std::unordered_map<long, double> free_speeds_by_law(const SpeedHistory& h, long 
 }
 
 std::shared_ptr<const SpeedHistory> speed_history(const TrajectorySet& t, double speed_window) {
-  // Each recorded point's walking direction (over the speed window; zero where the track is
-  // shorter or the person stands), then the density ahead at every point, frame by frame.
+  // One walk over the tracks: each speed sample, and its point's walking direction (zero where
+  // the track is shorter than the speed window or the person stands).
+  struct Sample {
+    long id;
+    size_t point;
+    double speed;
+  };
+  std::vector<Sample> samples;
   std::vector<Vec2> heading(t.points.size(), Vec2::Zero());
-  for_each_track_speed(t, speed_window, std::numeric_limits<long>::max(), [&](long, size_t i, size_t j, double) {
+  for_each_track_speed(t, speed_window, std::numeric_limits<long>::max(), [&](long id, size_t i, size_t j, double v) {
+    samples.push_back({id, i, v});
     const Vec2 d(t.points[i].x - t.points[j].x, t.points[i].y - t.points[j].y);
     if (d.squaredNorm() > 0) heading[i] = d.normalized();
   });
+  // The density ahead at every point, frame by frame.
   std::vector<float> rho(t.points.size(), 0.0f);
   std::vector<Vec2> at, dir;
   for (size_t b = 0; b < t.points.size();) {
@@ -136,10 +144,13 @@ std::shared_ptr<const SpeedHistory> speed_history(const TrajectorySet& t, double
     b = e;
   }
   auto h = std::make_shared<SpeedHistory>();
-  for_each_track_speed(t, speed_window, std::numeric_limits<long>::max(), [&](long id, size_t i, size_t, double v) {
-    h->by_id[id].push_back({t.points[i].frame, static_cast<float>(v), rho[i]});
-  });
+  for (const Sample& x : samples)
+    h->by_id[x.id].push_back({t.points[x.point].frame, static_cast<float>(x.speed), rho[x.point]});
   return h;
+}
+
+std::shared_ptr<const SpeedHistory> speed_history_for(const TrajectorySet& t, double speed_window, DesiredSpeed d) {
+  return d == DesiredSpeed::Free ? speed_history(t, speed_window) : nullptr;
 }
 
 ScenarioDef window_scenario(const ScenarioDef& scenario, bool keep_exits) {
@@ -173,12 +184,11 @@ WindowSim start_window(const ScenarioDef& sc, const Model& model, const Observed
       nearest[i] = std::min(nearest[i], d);
       nearest[j] = std::min(nearest[j], d);
     }
-  std::unordered_map<long, double> law_free;
-  const std::unordered_map<long, double>* free_by_law = nullptr;
-  if (o.desired_speed == DesiredSpeed::Free && material_density_law(model.params) && s.history) {
-    law_free = free_speeds_by_law(*s.history, s.frame, model.params);
-    free_by_law = &law_free;
-  }
+  // A model with a density-speed law reads each person's free speed under its own law.
+  const std::unordered_map<long, double> law_free =
+      o.desired_speed == DesiredSpeed::Free && material_density_law(model.params) && s.history
+          ? free_speeds_by_law(*s.history, s.frame, model.params)
+          : std::unordered_map<long, double>();
   std::vector<AgentDef> defs;
   std::vector<size_t> placed;  // index in s of each def
   for (size_t i = 0; i < s.x.size(); ++i) {
@@ -195,9 +205,10 @@ WindowSim start_window(const ScenarioDef& sc, const Model& model, const Observed
     a.comfort_distance = model.params.comfort_distance;
     // An observed speed beyond what the model allows (a tracking glitch) is clamped.
     const std::vector<double>& own = o.desired_speed == DesiredSpeed::Free ? s.free_speed : s.speed;
+    const auto law = law_free.find(s.ids[i]);
+    const double observed = law != law_free.end() ? std::max(law->second, s.speed[i]) : i < own.size() ? own[i] : 0.0;
     a.desired_speed = o.desired_speed != DesiredSpeed::Scenario && i < own.size()
-                          ? std::clamp(free_by_law && free_by_law->count(s.ids[i]) ? std::max(free_by_law->at(s.ids[i]), s.speed[i]) : own[i],
-                                       0.0, std::min(12.0, model.params.max_speed))
+                          ? std::clamp(observed, 0.0, std::min(12.0, model.params.max_speed))
                           : sim.draw_speed(sc.groups[0]);
     if (!std::isfinite(a.desired_speed)) a.desired_speed = 0;
     a.behaviour = sim.behaviour_of_group(0);

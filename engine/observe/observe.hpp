@@ -68,6 +68,9 @@ std::unordered_map<long, double> free_speeds(const TrajectorySet& t, double spee
 enum class DesiredSpeed { Scenario, Observed, Free };
 // "scenario", "observed" or "free" (the JSON and command-line spelling).
 const char* desired_speed_name(DesiredSpeed d);
+// The recording's speed history where desired speeds are free speeds (the only use of it), else
+// null: what training, prediction and diagnosis windows pass to observe_at.
+std::shared_ptr<const SpeedHistory> speed_history_for(const TrajectorySet& t, double speed_window, DesiredSpeed d);
 
 struct WindowOptions {
   int threads = 1;
