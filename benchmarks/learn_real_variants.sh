@@ -34,6 +34,7 @@ variants=(
   "venues_w8_gap_ds|corridor_300_exit_160 corridor_exit_070|--window 8 --stride 2 --iterations 200|as venues_w8_gap, with the material's density-speed law from Weidmann's values (learned)|headway_gap=0.1,density_speed_gamma=1.913,density_speed_max=5.4"
   "venues_w8_area4_gap_ds|corridor_300_exit_160 corridor_exit_070|--window 8 --stride 2 --iterations 200 --area-weight 4|as venues_w8_gap_ds, plus the area loss, weight 4|headway_gap=0.1,density_speed_gamma=1.913,density_speed_max=5.4"
   "venues_w8_area4_gap_ds_sc|corridor_300_exit_160 corridor_exit_070|--window 8 --stride 2 --iterations 200 --area-weight 4 --desired-speed scenario|as venues_w8_area4_gap_ds, the recorded people walking at their scenario's desired speed (times v0_scale) instead of their own free speed|headway_gap=0.1,density_speed_gamma=1.913,density_speed_max=5.4"
+  "venues_w8_area4_gap_ds_open|corridor_300_exit_160 corridor_exit_070|--window 8 --stride 2 --iterations 200 --area-weight 4|as venues_w8_area4_gap_ds, with the law's opening discount from 0.1 m/s (learned)|headway_gap=0.1,density_speed_gamma=1.913,density_speed_max=5.4,density_opening_speed=0.1"
   "venues_area1_gap_ds|corridor_300_exit_160 corridor_exit_070|--window 16 --stride 4 --iterations 200 --area-weight 1|as venues_area1_gap, with the material's density-speed law from Weidmann's values (learned)|headway_gap=0.1,density_speed_gamma=1.913,density_speed_max=5.4"
 )
 wanted=("$@")

@@ -319,11 +319,12 @@ const char* kGradientScene = R"({"format": "crowdmpm-scenario", "version": 1, "n
   "groups": [{"spawn": {"rect": [1.0, 1.0, 3.0, 3.4]}, "count": 14, "desired_speed": 1.2,
               "behaviour": {"type": "goal", "target": "out"}}]})";
 
-Model gradient_model(double time_gap = 0, double headway_gap = 0, double density_gamma = 0) {
+Model gradient_model(double time_gap = 0, double headway_gap = 0, double density_gamma = 0, double density_opening = 0) {
   Model m = Model::default_model();
   m.set("time_gap", time_gap);
   m.set("headway_gap", headway_gap);
   m.set("density_speed_gamma", density_gamma);
+  m.set("density_opening_speed", density_opening);
   // The scene's contacts were laid out for these (the default model's comfort distance is
   // smaller): every part of the step stays active.
   m.set("comfort_distance", 0.3);
@@ -347,7 +348,7 @@ namespace {
 // walk in from the left after steps 3 and 7 (WindowGradient::run's after_step), among the crowd
 // from then on; their entry state is data (J set to the crowd's, as a constant).
 double window_gradient_error(int steps, double time_gap = 0, bool entering = false, double headway_gap = 0,
-                             double density_gamma = 0) {
+                             double density_gamma = 0, double density_opening = 0) {
   const ScenarioDef s = ScenarioDef::parse_text(kGradientScene);
   Rng rng(99);
   std::vector<std::vector<Vec2>> target(steps + 1);
@@ -355,9 +356,15 @@ double window_gradient_error(int steps, double time_gap = 0, bool entering = fal
   // The crowd starts compressed (J = 0.85): the asymmetric stress has a kink at J = 1 (its
   // slope changes by the factor tension_scale), where neither differences nor adjoints mean
   // anything; away from it every term is smooth.
+  // With the opening discount, a crowd at rest sits on its kink too (s = 0 for every pair: one
+  // side of it discounts, the other does not), so that crowd starts walking at a spread of
+  // velocities.
   auto make_sim = [&](const Model& m) {
     auto sim = std::make_unique<Simulation>(s, m, 1);
     for (auto& J : sim->world().J) J = 0.85;
+    if (density_opening > 0)
+      for (size_t p = 0; p < sim->world().size(); ++p)
+        sim->world().v[p] = Vec2(0.3 + 0.07 * static_cast<double>(p % 5), 0.05 * static_cast<double>(p % 3) - 0.05);
     return sim;
   };
   int entered = 0;
@@ -375,7 +382,7 @@ double window_gradient_error(int steps, double time_gap = 0, bool entering = fal
     ++entered;
   };
   {
-    auto sim = make_sim(gradient_model(time_gap, headway_gap, density_gamma));
+    auto sim = make_sim(gradient_model(time_gap, headway_gap, density_gamma, density_opening));
     for (int k = 1; k <= steps; ++k)
       for (size_t p = 0; p < sim->world().size() + 2; ++p) target[static_cast<size_t>(k)].push_back(Vec2(4 * rng.uniform(), 4 * rng.uniform()));
   }
@@ -388,7 +395,7 @@ double window_gradient_error(int steps, double time_gap = 0, bool entering = fal
     }
     return L;
   };
-  Model model = gradient_model(time_gap, headway_gap, density_gamma);
+  Model model = gradient_model(time_gap, headway_gap, density_gamma, density_opening);
   auto sim = make_sim(model);
   // The scene must exercise contacts and the traction network.
   REQUIRE(sim->pair_stats().pairs > 10);
@@ -398,6 +405,8 @@ double window_gradient_error(int steps, double time_gap = 0, bool entering = fal
     return true;
   }, entering ? std::function<void(Simulation&)>(enter) : nullptr);
   if (entering) REQUIRE(entered == 2);
+  // The opening discount must be at work (people ahead walking away), not a no-op.
+  if (density_opening > 0) REQUIRE(g.params.density_opening_speed != 0);
   double worst = 0;
   int count = 0;
   auto compare = [&](const char* what, double analytic, double fd) {
@@ -515,6 +524,13 @@ TEST_CASE("12-step window gradient with the material's density-speed law matches
   // ahead (local_density_ahead_vjp: positions, and the headings the previous step made), with the
   // headway adaptation on.
   CHECK(window_gradient_error(12, 0.8, false, 0, 1.913) < 3e-5);
+}
+
+TEST_CASE("12-step window gradient with the density-speed law's opening discount matches central differences", "[gradients]") {
+  // density_opening_speed 0.1 m/s: a neighbour ahead walking away from a person counts in the
+  // density ahead with exp(-s / 0.1), s the speed at which they part. Its own gradient, the law's,
+  // and every initial x and v (the discount reads the velocities before each step).
+  CHECK(window_gradient_error(12, 0.8, false, 0, 1.913, 0.1) < 3e-5);
 }
 
 // The kernel adjoints chained by hand over two steps (a drive towards rest, pair traction, grid

@@ -269,6 +269,20 @@ TEST_CASE("density ahead: a uniform crowd at its density whichever way people fa
   // No heading: every neighbour weighs 1, as local_density.
   const std::vector<double> none = local_density_ahead(x, std::vector<Vec2>(x.size(), Vec2::Zero()), 1.0);
   for (size_t p = 0; p < x.size(); ++p) CHECK(none[p] == Approx(around[p]));
+  // The opening discount (density_opening_speed): a crowd walking as one parts from nobody and
+  // counts in full; the people ahead walking away at 0.3 m/s count with exp(-0.3 / 0.1) = 0.05.
+  const std::vector<Vec2> together(x.size(), Vec2(1.2, 0));
+  const std::vector<double> uniform = local_density_ahead(x, out, 1.0, &together, 0.1);
+  for (size_t p = 0; p < x.size(); ++p) CHECK(uniform[p] == Approx(front_out[p]));
+  std::vector<Vec2> parting(x.size(), Vec2(1.0, 0));
+  for (size_t p = 0; p < x.size(); ++p)
+    if (x[p].x() > x[front].x() - 0.3) parting[p] = Vec2(1.3, 0);  // the front row walks away
+  const std::vector<double> opened = local_density_ahead(x, out, 1.0, &parting, 0.1);
+  size_t behind = 0;  // the person nearest 0.6 m behind the front one
+  for (size_t p = 0; p < x.size(); ++p)
+    if ((x[p] - x[front] + Vec2(0.6, 0)).norm() < (x[behind] - x[front] + Vec2(0.6, 0)).norm()) behind = p;
+  CHECK(opened[behind] < 0.8 * front_out[behind]);
+  CHECK(opened[front] == Approx(front_out[front]));  // nobody ahead of the front row parts from it
 }
 
 TEST_CASE("model version 2 starts a dense crowd compressed, version 1 at J = 1", "[units]") {

@@ -329,7 +329,7 @@ ModelGradient WindowGradient::run(Simulation& sim, int steps, const StateLossGra
     headway_adjoint(in, nb, w, xadj.accel, hx, he, hu, out);
     in.time = step_time[static_cast<size_t>(k)];
     const std::vector<double> density = terms_density(in, w);
-    const std::vector<double> ahead = material_density(in, st.x, st.heading);
+    const std::vector<double> ahead = material_density(in, st.x, st.heading, st.v);
     density_bar.assign(n, 0.0);
     heading_bar_later.resize(n, Vec2::Zero());
     for (size_t p = 0; p < n; ++p) {
@@ -342,11 +342,12 @@ ModelGradient WindowGradient::run(Simulation& sim, int steps, const StateLossGra
       Cb[p] = xadj.C[p];
       Jb[p] = xadj.J[p];
     }
-    // The material's density-speed law reads the density ahead, which the positions and the
-    // headings before the step make.
+    // The material's density-speed law reads the density ahead, which the positions, the
+    // headings and (with an opening speed) the velocities before the step make.
     if (material_density_law(P)) {
       heading_bar.assign(n, Vec2::Zero());
-      local_density_ahead_vjp(st.x, st.heading, kDensityRadius, density_bar, xb, heading_bar);
+      local_density_ahead_vjp(st.x, st.heading, kDensityRadius, density_bar, xb, heading_bar, &st.v, P.density_opening_speed, &vb,
+                              &out.params.density_opening_speed);
       heading_bar_later.swap(heading_bar);
     }
   }

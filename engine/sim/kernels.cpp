@@ -138,8 +138,10 @@ std::vector<double> terms_density(const StepInputs& in, const World& w) {
   return terms_need_density(in.terms) ? local_density(w, 0, kDensityRadius) : std::vector<double>();
 }
 
-std::vector<double> material_density(const StepInputs& in, const std::vector<Vec2>& x, const std::vector<Vec2>& heading) {
-  return material_density_law(in.model.params) ? local_density_ahead(x, heading, kDensityRadius) : std::vector<double>();
+std::vector<double> material_density(const StepInputs& in, const std::vector<Vec2>& x, const std::vector<Vec2>& heading,
+                                     const std::vector<Vec2>& v) {
+  const MaterialParams& P = in.model.params;
+  return material_density_law(P) ? local_density_ahead(x, heading, kDensityRadius, &v, P.density_opening_speed) : std::vector<double>();
 }
 
 double material_density_factor(const MaterialParams& P, const TermPoint& pt) {
@@ -194,7 +196,7 @@ void drive_point(const StepInputs& in, const Behaviour& beh, const TermPoint& pt
 
 void kernel_drive(const StepInputs& in, World& w, ThreadPool& pool) {
   const std::vector<double> density = terms_density(in, w);
-  const std::vector<double> ahead = material_density(in, w.x, w.heading);  // before the headings change
+  const std::vector<double> ahead = material_density(in, w.x, w.heading, w.v);  // before the headings change
   pool.parallel_for(w.size(), [&](size_t b, size_t e) {
     for (size_t p = b; p < e; ++p)
       drive_point(in, in.behaviours[w.behaviour[p]], terms_point(in, w, p, w.heading[p], density, ahead), w.v0[p], w.accel[p],

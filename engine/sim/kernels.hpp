@@ -131,7 +131,8 @@ TermPoint terms_point(const StepInputs& in, const World& w, size_t p, const Vec2
 std::vector<double> terms_density(const StepInputs& in, const World& w);
 // The densities ahead (local_density_ahead at positions x with the headings before the step) that
 // the material's density-speed law reads (empty when the model has none).
-std::vector<double> material_density(const StepInputs& in, const std::vector<Vec2>& x, const std::vector<Vec2>& heading);
+std::vector<double> material_density(const StepInputs& in, const std::vector<Vec2>& x, const std::vector<Vec2>& heading,
+                                     const std::vector<Vec2>& v);
 // The material's own density-speed law (density_speed_gamma > 0; the "density_speed" term's
 // formula with the model's gamma and max density, at the density ahead of the person,
 // pt.density_ahead): the factor f on the free speed at pt (1 when off), and, given dL/df, adds

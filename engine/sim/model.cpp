@@ -33,6 +33,7 @@ const std::vector<ParamInfo>& param_table() {
       {"headway_width", &MaterialParams::headway_width, 0.05, 1, "1", kFixed, false},
       {"density_speed_gamma", &MaterialParams::density_speed_gamma, 0, 50, "persons/m^2", kContinuum, false},
       {"density_speed_max", &MaterialParams::density_speed_max, 0.5, 12, "persons/m^2", kContinuum, false},
+      {"density_opening_speed", &MaterialParams::density_opening_speed, 0, 5, "m/s", kContinuum, false},
       // Routes are recomputed from the crowd's density once a second; held fixed through a
       // gradient window (no adjoint of the route choice).
       {"route_congestion", &MaterialParams::route_congestion, 0, 4, "1", kFixed, false},
@@ -169,6 +170,11 @@ std::string ParamInfo::not_learnable_in(const Model& m) const {
       m.params.density_speed_gamma == 0)
     return std::string(name) + " belongs to the density-speed law, which is off in the starting model "
            "(density_speed_gamma 0): start from a value above 0 to learn it (it is learned in log coordinates)";
+  if (field == &MaterialParams::density_opening_speed && (m.params.density_speed_gamma == 0 || m.params.density_opening_speed == 0))
+    return m.params.density_speed_gamma == 0
+               ? "density_opening_speed belongs to the density-speed law, which is off in the starting model (density_speed_gamma 0)"
+               : "density_opening_speed is 0 in the starting model (everyone ahead counts in full): start from a value above 0 to "
+                 "learn it (it is learned in log coordinates)";
   if ((learned_by & (m.is_continuum() ? kContinuum : kSocialForce)) == 0)
     return std::string(name) + " is not learned by the " + material_name(m.material) + " model";
   return {};

@@ -39,6 +39,11 @@ struct MaterialParams {
   // (local_density_ahead, world.hpp: people behind do not count). gamma 0: off.
   double density_speed_gamma = 0;  // persons/m^2 (Weidmann: 1.913)
   double density_speed_max = 5.4;  // persons/m^2: where people stop
+  // The gap that opens: a neighbour ahead walking away from the person, at s = (v_q - v_p).e_p > 0,
+  // counts in that density with the weight exp(-s / u), u this speed (0: off, everyone counts in
+  // full). In a uniform flow nobody walks away from anybody; at a door's mouth the people ahead
+  // accelerate into the space beyond it, and the people behind them may follow.
+  double density_opening_speed = 0;  // m/s
   // Route choice under congestion (Hughes 2002): goal routes minimise the travel cost
   // 1 + w (u_ref / v(rho) - 1) per metre, v(rho) the headway's speed at the local density; 0: the
   // shortest path (model version 1 and social_force's default).

@@ -123,28 +123,64 @@ double ahead_weight(const Vec2& r, const Vec2& e, double R, Vec2* dr, Vec2* de) 
   if (de) *de = a * r / n;
   return a * (1 + c);
 }
+
+// The opening discount of neighbour q seen by p: D = exp(-s / u) for s = dv.e > 0 (dv = v_q - v_p),
+// else 1; with dD/ds, ds/d(dv) = e, ds/de = dv and dD/du.
+double opening_discount(const Vec2& dv, const Vec2& e, double u, double* dD_ds, double* dD_du) {
+  const double s = dv.dot(e);
+  if (!(s > 0)) {
+    if (dD_ds) *dD_ds = 0;
+    if (dD_du) *dD_du = 0;
+    return 1;
+  }
+  const double D = std::exp(-s / u);
+  if (dD_ds) *dD_ds = -D / u;
+  if (dD_du) *dD_du = D * s / (u * u);
+  return D;
+}
 }  // namespace
 
-std::vector<double> local_density_ahead(const std::vector<Vec2>& x, const std::vector<Vec2>& heading, double R) {
+std::vector<double> local_density_ahead(const std::vector<Vec2>& x, const std::vector<Vec2>& heading, double R,
+                                        const std::vector<Vec2>* v, double opening) {
   std::vector<double> rho(x.size(), 0.0);
   const double norm = 2 / (M_PI * R * R);
+  const bool discount = v && opening > 0;
   for_each_within(x, 0, R, [&](size_t p, size_t q, double) {
-    rho[p] += ahead_weight(x[q] - x[p], heading[p], R, nullptr, nullptr);
+    const double W = ahead_weight(x[q] - x[p], heading[p], R, nullptr, nullptr);
+    rho[p] += discount && p != q ? W * opening_discount((*v)[q] - (*v)[p], heading[p], opening, nullptr, nullptr) : W;
   });
   for (double& r : rho) r *= norm;
   return rho;
 }
 
 void local_density_ahead_vjp(const std::vector<Vec2>& x, const std::vector<Vec2>& heading, double R,
-                             const std::vector<double>& rho_bar, std::vector<Vec2>& x_bar, std::vector<Vec2>& heading_bar) {
+                             const std::vector<double>& rho_bar, std::vector<Vec2>& x_bar, std::vector<Vec2>& heading_bar,
+                             const std::vector<Vec2>* v, double opening, std::vector<Vec2>* v_bar, double* opening_bar) {
   const double norm = 2 / (M_PI * R * R);
+  const bool discount = v && opening > 0;
   for_each_within(x, 0, R, [&](size_t p, size_t q, double) {
     if (p == q || rho_bar[p] == 0) return;
     Vec2 dr = Vec2::Zero(), de = Vec2::Zero();
-    ahead_weight(x[q] - x[p], heading[p], R, &dr, &de);
-    x_bar[q] += rho_bar[p] * norm * dr;
-    x_bar[p] -= rho_bar[p] * norm * dr;
-    heading_bar[p] += rho_bar[p] * norm * de;
+    const double W = ahead_weight(x[q] - x[p], heading[p], R, &dr, &de);
+    const double g = rho_bar[p] * norm;
+    if (!discount) {
+      x_bar[q] += g * dr;
+      x_bar[p] -= g * dr;
+      heading_bar[p] += g * de;
+      return;
+    }
+    // rho_p gets W D: d(W D) = D dW + W dD.
+    const Vec2 dv = (*v)[q] - (*v)[p];
+    double dD_ds = 0, dD_du = 0;
+    const double D = opening_discount(dv, heading[p], opening, &dD_ds, &dD_du);
+    x_bar[q] += g * D * dr;
+    x_bar[p] -= g * D * dr;
+    heading_bar[p] += g * (D * de + W * dD_ds * dv);
+    if (v_bar) {
+      (*v_bar)[q] += g * W * dD_ds * heading[p];
+      (*v_bar)[p] -= g * W * dD_ds * heading[p];
+    }
+    if (opening_bar) *opening_bar += g * W * dD_du;
   });
 }
 

@@ -71,11 +71,18 @@ std::vector<double> local_density(const std::vector<Vec2>& x, size_t first, doub
 // The density ahead of each point: the same kernel, neighbour q weighted by 1 + cos of the angle
 // between x_q - x_p and heading p (unit, or zero: every neighbour weighs 1), the point itself by 1.
 // A uniform crowd gives its density; people behind count for nothing, people straight ahead twice.
-std::vector<double> local_density_ahead(const std::vector<Vec2>& x, const std::vector<Vec2>& heading, double R);
-// Its adjoint: given rho_bar[p] = dL/drho_p, adds dL/dx to x_bar and dL/dheading to heading_bar.
-// The kernel's slope jumps at r = R (a neighbour entering the radius): exact away from it.
+// With velocities v and opening > 0, a neighbour walking away at s = (v_q - v_p).heading_p > 0
+// is further weighted by exp(-s / opening) (MaterialParams::density_opening_speed).
+std::vector<double> local_density_ahead(const std::vector<Vec2>& x, const std::vector<Vec2>& heading, double R,
+                                        const std::vector<Vec2>* v = nullptr, double opening = 0);
+// Its adjoint: given rho_bar[p] = dL/drho_p, adds dL/dx to x_bar and dL/dheading to heading_bar,
+// and with v and opening > 0, dL/dv to *v_bar and dL/dopening to *opening_bar.
+// The kernel's slope jumps at r = R (a neighbour entering the radius) and at s = 0: exact away
+// from them.
 void local_density_ahead_vjp(const std::vector<Vec2>& x, const std::vector<Vec2>& heading, double R,
-                             const std::vector<double>& rho_bar, std::vector<Vec2>& x_bar, std::vector<Vec2>& heading_bar);
+                             const std::vector<double>& rho_bar, std::vector<Vec2>& x_bar, std::vector<Vec2>& heading_bar,
+                             const std::vector<Vec2>* v = nullptr, double opening = 0, std::vector<Vec2>* v_bar = nullptr,
+                             double* opening_bar = nullptr);
 
 // Model v2's reference volumes: J = clamp(rho0 / rho, j_min, 1) for the agents [first, size())
 // with rho their local_density over kDensityRadius, so that a crowd entering denser than rest
