@@ -319,12 +319,15 @@ const char* kGradientScene = R"({"format": "crowdmpm-scenario", "version": 1, "n
   "groups": [{"spawn": {"rect": [1.0, 1.0, 3.0, 3.4]}, "count": 14, "desired_speed": 1.2,
               "behaviour": {"type": "goal", "target": "out"}}]})";
 
-Model gradient_model(double time_gap = 0, double headway_gap = 0, double density_gamma = 0, double density_opening = 0) {
+Model gradient_model(double time_gap = 0, double headway_gap = 0, double density_gamma = 0, double density_opening = 0,
+                     double density_reach = 1, double density_focus = 1) {
   Model m = Model::default_model();
   m.set("time_gap", time_gap);
   m.set("headway_gap", headway_gap);
   m.set("density_speed_gamma", density_gamma);
   m.set("density_opening_speed", density_opening);
+  m.set("density_speed_reach", density_reach);
+  m.set("density_speed_focus", density_focus);
   // The scene's contacts were laid out for these (the default model's comfort distance is
   // smaller): every part of the step stays active.
   m.set("comfort_distance", 0.3);
@@ -348,7 +351,8 @@ namespace {
 // walk in from the left after steps 3 and 7 (WindowGradient::run's after_step), among the crowd
 // from then on; their entry state is data (J set to the crowd's, as a constant).
 double window_gradient_error(int steps, double time_gap = 0, bool entering = false, double headway_gap = 0,
-                             double density_gamma = 0, double density_opening = 0) {
+                             double density_gamma = 0, double density_opening = 0, double density_reach = 1,
+                             double density_focus = 1) {
   const ScenarioDef s = ScenarioDef::parse_text(kGradientScene);
   Rng rng(99);
   std::vector<std::vector<Vec2>> target(steps + 1);
@@ -382,7 +386,7 @@ double window_gradient_error(int steps, double time_gap = 0, bool entering = fal
     ++entered;
   };
   {
-    auto sim = make_sim(gradient_model(time_gap, headway_gap, density_gamma, density_opening));
+    auto sim = make_sim(gradient_model(time_gap, headway_gap, density_gamma, density_opening, density_reach, density_focus));
     for (int k = 1; k <= steps; ++k)
       for (size_t p = 0; p < sim->world().size() + 2; ++p) target[static_cast<size_t>(k)].push_back(Vec2(4 * rng.uniform(), 4 * rng.uniform()));
   }
@@ -395,7 +399,7 @@ double window_gradient_error(int steps, double time_gap = 0, bool entering = fal
     }
     return L;
   };
-  Model model = gradient_model(time_gap, headway_gap, density_gamma, density_opening);
+  Model model = gradient_model(time_gap, headway_gap, density_gamma, density_opening, density_reach, density_focus);
   auto sim = make_sim(model);
   // The scene must exercise contacts and the traction network.
   REQUIRE(sim->pair_stats().pairs > 10);
@@ -531,6 +535,14 @@ TEST_CASE("12-step window gradient with the density-speed law's opening discount
   // density ahead with exp(-s / 0.1), s the speed at which they part. Its own gradient, the law's,
   // and every initial x and v (the discount reads the velocities before each step).
   CHECK(window_gradient_error(12, 0.8, false, 0, 1.913, 0.1) < 3e-5);
+}
+
+TEST_CASE("12-step window gradient with the density ahead read over 2.5 m with focus 2.5 matches central differences", "[gradients]") {
+  // density_speed_reach 2.5 m and density_speed_focus 2.5: the kernel reaches across the whole
+  // group and weighs neighbours by (1 + cos)^2.5 / N (the Gamma-function norm of a focus that is
+  // not whole); the law and opening discount as above. The kernel's shape is not learned: its
+  // derivatives along positions, headings and velocities are what is checked.
+  CHECK(window_gradient_error(12, 0.8, false, 0, 1.913, 0.1, 2.5, 2.5) < 3e-5);
 }
 
 // The kernel adjoints chained by hand over two steps (a drive towards rest, pair traction, grid

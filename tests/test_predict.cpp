@@ -118,15 +118,16 @@ TEST_CASE("free speeds under a density-speed law: speeds divided by the law's fa
   };
   scene_at(one[5].frame);  // in the middle of the block (x = 0.75)
   CHECK(one[5].speed == Approx(0.5).epsilon(1e-6));
-  CHECK(one[5].density == Approx(local_density_ahead(xs, heading, kDensityRadius)[me]).epsilon(1e-6));
-  CHECK(one[5].density > 2.5);
+  const std::vector<float>& rho = h->density_ahead(kDensityRadius, 1);
+  CHECK(rho[one[5].point] == Approx(local_density_ahead(xs, heading, kDensityRadius, 1)[me]).epsilon(1e-6));
+  CHECK(rho[one[5].point] > 2.5);
   // Leaving the block (x = 2, the block behind them): little ahead, and looking back the other
   // way they would see the block.
   scene_at(one.back().frame);
-  CHECK(one.back().density == Approx(local_density_ahead(xs, heading, kDensityRadius)[me]).epsilon(1e-6));
+  CHECK(rho[one.back().point] == Approx(local_density_ahead(xs, heading, kDensityRadius, 1)[me]).epsilon(1e-6));
   heading[me] = Vec2(-1, 0);
-  CHECK(local_density_ahead(xs, heading, kDensityRadius)[me] > one.back().density + 0.5);
-  CHECK(h->by_id.at(20)[0].density == Approx(2 / M_PI).epsilon(1e-6));  // alone: only themselves
+  CHECK(local_density_ahead(xs, heading, kDensityRadius, 1)[me] > rho[one.back().point] + 0.5);
+  CHECK(rho[h->by_id.at(20)[0].point] == Approx(2 / M_PI).epsilon(1e-6));  // alone: only themselves
   // Under Weidmann's law the walker in the block is freer than they walked; the lone walker is
   // not slowed by anyone and keeps their speed (f = 1 - exp(-1.913 (pi/2 - 1/5.4)) = 0.93).
   Model m = Model::default_model();
@@ -136,13 +137,19 @@ TEST_CASE("free speeds under a density-speed law: speeds divided by the law's fa
   std::vector<double> expected;
   for (const SpeedSample& x : one) {
     TermPoint pt;
-    pt.density_ahead = x.density;
+    pt.density_ahead = rho[x.point];
     expected.push_back(x.speed / std::max(material_density_factor(m.params, pt), kLawFactorFloor));
   }
   std::sort(expected.begin(), expected.end());
   CHECK(free.at(1) == Approx(expected[static_cast<size_t>(0.9 * static_cast<double>(expected.size()))]));
   CHECK(free.at(1) > 0.5 / 0.8);
   CHECK(free.at(20) == Approx(1.2 / (1 - std::exp(-1.913 * (M_PI / 2 - 1 / 5.4)))).epsilon(1e-4));
+  // A model whose law reads further ahead reads the recording with its own kernel: the lone
+  // walker (reach 3 m: 2 / (9 pi) persons/m^2, themselves) is freer still than under reach 1 m.
+  Model far = m;
+  far.set("density_speed_reach", 3);
+  CHECK(free_speeds_by_law(*h, 40, far.params).at(20) == Approx(1.2 / (1 - std::exp(-1.913 * (9 * M_PI / 2 - 1 / 5.4)))).epsilon(1e-4));
+  CHECK(&h->density_ahead(3, 1) == &h->density_ahead(3, 1));  // computed once, kept
   // Only samples up to the frame asked for; a free speed beyond the cap is cut to it.
   CHECK(free_speeds_by_law(*h, 10, m.params).count(1) == 1);
   CHECK(free_speeds_by_law(*h, 9, m.params).count(1) == 0);

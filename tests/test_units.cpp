@@ -253,36 +253,60 @@ TEST_CASE("density ahead: a uniform crowd at its density whichever way people fa
       const double angle = 0.7 * static_cast<double>(x.size());
       heading.emplace_back(std::cos(angle), std::sin(angle));
     }
-  const std::vector<double> ahead = local_density_ahead(x, heading, 1.0);
+  const std::vector<double> ahead = local_density_ahead(x, heading, 1.0, 1.0);
   const std::vector<double> around = local_density(x, 0, 1.0);
   for (size_t p = 0; p < x.size(); ++p)
     if ((x[p] - Vec2(10, 10)).norm() < 5) CHECK(ahead[p] == Approx(around[p]).epsilon(0.1));
   // At the front of the crowd, facing out: the people behind count for nothing (only those
   // beside and the person themselves); facing back, the crowd counts about twice.
   std::vector<Vec2> out(x.size(), Vec2(1, 0)), back(x.size(), Vec2(-1, 0));
-  const std::vector<double> front_out = local_density_ahead(x, out, 1.0), front_back = local_density_ahead(x, back, 1.0);
+  const std::vector<double> front_out = local_density_ahead(x, out, 1.0, 1.0), front_back = local_density_ahead(x, back, 1.0, 1.0);
   size_t front = 0;
   for (size_t p = 0; p < x.size(); ++p)
     if (std::abs(x[p].y() - 10) < 1 && x[p].x() > x[front].x()) front = p;
   CHECK(front_out[front] < 0.6 * around[front]);  // 1.6 against 3.0 around (half a disc of the crowd)
   CHECK(front_back[front] > 1.4 * around[front]);  // 4.4
   // No heading: every neighbour weighs 1, as local_density.
-  const std::vector<double> none = local_density_ahead(x, std::vector<Vec2>(x.size(), Vec2::Zero()), 1.0);
+  const std::vector<double> none = local_density_ahead(x, std::vector<Vec2>(x.size(), Vec2::Zero()), 1.0, 1.0);
   for (size_t p = 0; p < x.size(); ++p) CHECK(none[p] == Approx(around[p]));
   // The opening discount (density_opening_speed): a crowd walking as one parts from nobody and
   // counts in full; the people ahead walking away at 0.3 m/s count with exp(-0.3 / 0.1) = 0.05.
   const std::vector<Vec2> together(x.size(), Vec2(1.2, 0));
-  const std::vector<double> uniform = local_density_ahead(x, out, 1.0, &together, 0.1);
+  const std::vector<double> uniform = local_density_ahead(x, out, 1.0, 1.0, &together, 0.1);
   for (size_t p = 0; p < x.size(); ++p) CHECK(uniform[p] == Approx(front_out[p]));
   std::vector<Vec2> parting(x.size(), Vec2(1.0, 0));
   for (size_t p = 0; p < x.size(); ++p)
     if (x[p].x() > x[front].x() - 0.3) parting[p] = Vec2(1.3, 0);  // the front row walks away
-  const std::vector<double> opened = local_density_ahead(x, out, 1.0, &parting, 0.1);
+  const std::vector<double> opened = local_density_ahead(x, out, 1.0, 1.0, &parting, 0.1);
   size_t behind = 0;  // the person nearest 0.6 m behind the front one
   for (size_t p = 0; p < x.size(); ++p)
     if ((x[p] - x[front] + Vec2(0.6, 0)).norm() < (x[behind] - x[front] + Vec2(0.6, 0)).norm()) behind = p;
   CHECK(opened[behind] < 0.8 * front_out[behind]);
   CHECK(opened[front] == Approx(front_out[front]));  // nobody ahead of the front row parts from it
+  // Reach and focus (density_speed_reach, density_speed_focus): inside a uniform crowd any
+  // kernel reads its density; a person 1.5 m in front of the crowd, facing it, sees it only
+  // with a reach beyond 1.5 m, and a focused kernel sees less of the people beside them: at the
+  // crowd's side edge facing along it, half the disc is empty either way, but at its front
+  // facing out, the front row beside the person weighs (1 + cos 90)^4 / 4.375 = 0.23 instead of 1.
+  for (double focus : {1.0, 2.5, 4.0}) {
+    const std::vector<double> wide = local_density_ahead(x, heading, 3.0, focus);
+    const std::vector<double> around3 = local_density(x, 0, 3.0);
+    for (size_t p = 0; p < x.size(); ++p)
+      if ((x[p] - Vec2(10, 10)).norm() < 3) CHECK(wide[p] == Approx(around3[p]).epsilon(0.05));
+  }
+  std::vector<Vec2> ahead_of = x;
+  ahead_of.emplace_back(x[front].x() + 1.5, x[front].y());
+  std::vector<Vec2> facing(ahead_of.size(), Vec2(1, 0));
+  facing.back() = Vec2(-1, 0);
+  const double alone = 2 / M_PI;  // itself only, reach 1 m
+  CHECK(local_density_ahead(ahead_of, facing, 1.0, 1.0).back() == Approx(alone));
+  CHECK(local_density_ahead(ahead_of, facing, 3.0, 4.0).back() > 1.0);
+  const double out1 = local_density_ahead(x, out, 1.0, 1.0)[front], out4 = local_density_ahead(x, out, 1.0, 4.0)[front];
+  CHECK(out4 < 0.6 * out1);
+  // A focus below 1 is not a kernel the model accepts (docs/model-format.md: [1, 8]).
+  Model m = Model::default_model();
+  CHECK_THROWS_WITH(m.set("density_speed_focus", 0.5), Catch::Contains("density_speed_focus must be in [1, 8]"));
+  CHECK_THROWS_WITH(m.set("density_speed_reach", 0.1), Catch::Contains("density_speed_reach must be in [0.5, 5] m"));
 }
 
 TEST_CASE("model version 2 starts a dense crowd compressed, version 1 at J = 1", "[units]") {

@@ -99,13 +99,14 @@ std::unordered_map<long, double> free_speeds(const TrajectorySet& t, double spee
 
 std::unordered_map<long, double> free_speeds_by_law(const SpeedHistory& h, long last, const MaterialParams& P) {
   std::unordered_map<long, double> out;
+  const std::vector<float>& rho = h.density_ahead(P.density_speed_reach, P.density_speed_focus);
   std::vector<double> v;
   TermPoint pt;
   for (const auto& [id, samples] : h.by_id) {
     v.clear();
     for (const SpeedSample& x : samples) {
       if (x.frame > last) break;
-      pt.density_ahead = x.density;
+      pt.density_ahead = rho[x.point];
       v.push_back(x.speed / std::max(material_density_factor(P, pt), kLawFactorFloor));
     }
     if (!v.empty()) out[id] = std::min(percentile90(v), kLawFreeSpeedCap);
@@ -113,39 +114,42 @@ std::unordered_map<long, double> free_speeds_by_law(const SpeedHistory& h, long 
   return out;
 }
 
+const std::vector<float>& SpeedHistory::density_ahead(double reach, double focus) const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  std::unique_ptr<std::vector<float>>& rho = cache_[{reach, focus}];
+  if (rho) return *rho;
+  auto d = std::make_unique<std::vector<float>>(at.size(), 0.0f);
+  std::vector<Vec2> xs, hs;
+  for (size_t i = 0; i + 1 < frame_start.size(); ++i) {
+    const size_t b = frame_start[i], e = frame_start[i + 1];
+    xs.assign(at.begin() + static_cast<long>(b), at.begin() + static_cast<long>(e));
+    hs.assign(dir.begin() + static_cast<long>(b), dir.begin() + static_cast<long>(e));
+    const std::vector<double> r = local_density_ahead(xs, hs, reach, focus);
+    for (size_t k = b; k < e; ++k) (*d)[k] = static_cast<float>(r[k - b]);
+  }
+  rho = std::move(d);
+  return *rho;
+}
+
 std::shared_ptr<const SpeedHistory> speed_history(const TrajectorySet& t, double speed_window) {
+  auto h = std::make_shared<SpeedHistory>();
   // One walk over the tracks: each speed sample, and its point's walking direction (zero where
   // the track is shorter than the speed window or the person stands).
-  struct Sample {
-    long id;
-    size_t point;
-    double speed;
-  };
-  std::vector<Sample> samples;
-  std::vector<Vec2> heading(t.points.size(), Vec2::Zero());
+  h->at.reserve(t.points.size());
+  for (const TrackPoint& p : t.points) h->at.emplace_back(p.x, p.y);
+  h->dir.assign(t.points.size(), Vec2::Zero());
   for_each_track_speed(t, speed_window, std::numeric_limits<long>::max(), [&](long id, size_t i, size_t j, double v) {
-    samples.push_back({id, i, v});
+    h->by_id[id].push_back({t.points[i].frame, static_cast<float>(v), i});
     const Vec2 d(t.points[i].x - t.points[j].x, t.points[i].y - t.points[j].y);
-    if (d.squaredNorm() > 0) heading[i] = d.normalized();
+    if (d.squaredNorm() > 0) h->dir[i] = d.normalized();
   });
-  // The density ahead at every point, frame by frame.
-  std::vector<float> rho(t.points.size(), 0.0f);
-  std::vector<Vec2> at, dir;
   for (size_t b = 0; b < t.points.size();) {
+    h->frame_start.push_back(b);
     size_t e = b;
-    at.clear();
-    dir.clear();
-    for (; e < t.points.size() && t.points[e].frame == t.points[b].frame; ++e) {
-      at.emplace_back(t.points[e].x, t.points[e].y);
-      dir.push_back(heading[e]);
-    }
-    const std::vector<double> d = local_density_ahead(at, dir, kDensityRadius);
-    for (size_t k = b; k < e; ++k) rho[k] = static_cast<float>(d[k - b]);
+    while (e < t.points.size() && t.points[e].frame == t.points[b].frame) ++e;
     b = e;
   }
-  auto h = std::make_shared<SpeedHistory>();
-  for (const Sample& x : samples)
-    h->by_id[x.id].push_back({t.points[x.point].frame, static_cast<float>(x.speed), rho[x.point]});
+  h->frame_start.push_back(t.points.size());
   return h;
 }
 

@@ -1,7 +1,9 @@
 #pragma once
 // Observed states: where the people of a recording are at a frame, how fast they move, and a
 // simulation started from that state (what training windows and predictions both start from).
+#include <map>
 #include <memory>
+#include <mutex>
 #include <string>
 #include <limits>
 #include <unordered_map>
@@ -12,19 +14,29 @@
 
 namespace crowdmpm {
 
-// Every person's walking speed along their recorded track, with the density ahead of them: one
+// Every person's walking speed along their recorded track, and the density ahead of them: one
 // sample per recorded frame, the speed over the speed window ending there (as free_speeds), and
-// the persons/m^2 ahead of them there (local_density_ahead over kDensityRadius among the recorded
-// people, each heading the direction walked over the speed window; zero where they stand). What a
-// model with a density-speed law reads to tell a person's free speed from the speed a crowd held
-// them to (start_window).
+// where it was walked. density_ahead(R, k) gives the persons/m^2 ahead of every recorded point
+// (local_density_ahead with reach R and focus k among the recorded people of its frame, each
+// heading the direction walked over the speed window; zero where they stand), computed once per
+// kernel and kept. What a model with a density-speed law reads, with its own kernel, to tell a
+// person's free speed from the speed a crowd held them to (start_window).
 struct SpeedSample {
   long frame;
-  float speed;    // m/s
-  float density;  // persons/m^2 ahead
+  float speed;   // m/s
+  size_t point;  // index of the recorded point (TrajectorySet::points), for density_ahead
 };
-struct SpeedHistory {
+class SpeedHistory {
+ public:
   std::unordered_map<long, std::vector<SpeedSample>> by_id;  // in frame order
+  std::vector<Vec2> at, dir;                                 // every recorded point and its walking direction
+  std::vector<size_t> frame_start;                           // points of one frame: [frame_start[i], frame_start[i + 1])
+  // Persons/m^2 ahead of every recorded point (thread-safe; the reference stays valid).
+  const std::vector<float>& density_ahead(double reach, double focus) const;
+
+ private:
+  mutable std::mutex mutex_;
+  mutable std::map<std::pair<double, double>, std::unique_ptr<std::vector<float>>> cache_;
 };
 std::shared_ptr<const SpeedHistory> speed_history(const TrajectorySet& t, double speed_window);
 // Each person's free speed under a model's density-speed law (MaterialParams::density_speed_gamma

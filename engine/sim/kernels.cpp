@@ -141,7 +141,7 @@ std::vector<double> terms_density(const StepInputs& in, const World& w) {
 std::vector<double> material_density(const StepInputs& in, const std::vector<Vec2>& x, const std::vector<Vec2>& heading,
                                      const std::vector<Vec2>& v) {
   const MaterialParams& P = in.model.params;
-  return material_density_law(P) ? local_density_ahead(x, heading, kDensityRadius, &v, P.density_opening_speed) : std::vector<double>();
+  return material_density_law(P) ? local_density_ahead(x, heading, P.density_speed_reach, P.density_speed_focus, &v, P.density_opening_speed) : std::vector<double>();
 }
 
 double material_density_factor(const MaterialParams& P, const TermPoint& pt) {

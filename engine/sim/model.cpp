@@ -34,6 +34,9 @@ const std::vector<ParamInfo>& param_table() {
       {"density_speed_gamma", &MaterialParams::density_speed_gamma, 0, 50, "persons/m^2", kContinuum, false},
       {"density_speed_max", &MaterialParams::density_speed_max, 0.5, 12, "persons/m^2", kContinuum, false},
       {"density_opening_speed", &MaterialParams::density_opening_speed, 0, 5, "m/s", kContinuum, false},
+      // The density ahead's kernel: set by hand (no adjoint with respect to its shape), fixed in training.
+      {"density_speed_reach", &MaterialParams::density_speed_reach, 0.5, 5, "m", kFixed, false},
+      {"density_speed_focus", &MaterialParams::density_speed_focus, 1, 8, "1", kFixed, false},
       // Routes are recomputed from the crowd's density once a second; held fixed through a
       // gradient window (no adjoint of the route choice).
       {"route_congestion", &MaterialParams::route_congestion, 0, 4, "1", kFixed, false},

@@ -35,10 +35,13 @@ struct MaterialParams {
   double headway_width = 0.5;    // lane half-width of the headway, as a fraction of r_p + r_q
   // Desired speed falling with the local density (Weidmann 1993), part of the material: the free
   // speed is multiplied by f = 1 - exp(-gamma s(1/rho - 1/max)) (the "density_speed" force
-  // term's law, terms/density_speed.cpp), rho the persons/m^2 ahead of the person within 1 m
-  // (local_density_ahead, world.hpp: people behind do not count). gamma 0: off.
+  // term's law, terms/density_speed.cpp), rho the persons/m^2 ahead of the person within the
+  // reach, weighted towards the heading by the focus (local_density_ahead, world.hpp: people
+  // behind do not count). gamma 0: off.
   double density_speed_gamma = 0;  // persons/m^2 (Weidmann: 1.913)
   double density_speed_max = 5.4;  // persons/m^2: where people stop
+  double density_speed_reach = 1;  // m: R, how far ahead the density is read
+  double density_speed_focus = 1;  // k >= 1: neighbours weighted by (1 + cos)^k (1: the half-plane ahead; 4: a cone of ~50 degrees)
   // The gap that opens: a neighbour ahead walking away from the person, at s = (v_q - v_p).e_p > 0,
   // counts in that density with the weight exp(-s / u), u this speed (0: off, everyone counts in
   // full). In a uniform flow nobody walks away from anybody; at a door's mouth the people ahead

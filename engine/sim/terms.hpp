@@ -94,7 +94,7 @@ struct TermPoint {
   // persons/m^2 around the agent (local_density over kDensityRadius, world.hpp); computed only
   // when a term of the scenario needs it (TermLaw::needs_density), 0 otherwise.
   double density = 0;
-  // persons/m^2 ahead of the agent (local_density_ahead over kDensityRadius, world.hpp), which the
+  // persons/m^2 ahead of the agent (local_density_ahead with the model's reach and focus, world.hpp), which the
   // material's density-speed law reads (kernels.hpp); 0 when the model has no such law.
   double density_ahead = 0;
   uint64_t id = 0;  // the agent's entity id (a stable per-person draw for laws that pick people)

@@ -114,15 +114,20 @@ std::vector<double> local_density(const World& w, size_t first, double R) { retu
 
 namespace {
 // The weight of neighbour q at r = x_q - x_p (0 < |r| < R) seen with heading e, and its
-// derivatives along r and e: W = (1 - |r|^2/R^2)(1 + r.e/|r|).
-double ahead_weight(const Vec2& r, const Vec2& e, double R, Vec2* dr, Vec2* de) {
+// derivatives along r and e: W = (1 - |r|^2/R^2)(1 + r.e/|r|)^k / N_k (N_k: focus_norm).
+double ahead_weight(const Vec2& r, const Vec2& e, double R, double k, double Nk, Vec2* dr, Vec2* de) {
   const double n = r.norm(), a = 1 - r.squaredNorm() / (R * R);
   if (!(n > 0)) return a;  // the agent itself
   const double c = r.dot(e) / n;
-  if (dr) *dr = (1 + c) * (-2 / (R * R)) * r + a * (e - c * r / n) / n;
-  if (de) *de = a * r / n;
-  return a * (1 + c);
+  const double g = k == 1 ? (1 + c) : std::pow(1 + c, k), dg = k == 1 ? 1 : k * std::pow(1 + c, k - 1);  // (1+c)^k, d/dc
+  const double N = e.squaredNorm() > 0 ? Nk : 1;  // no heading: every neighbour weighs 1 (c = 0)
+  if (dr) *dr = (g * (-2 / (R * R)) * r + a * dg * (e - c * r / n) / n) / N;
+  if (de) *de = a * dg * r / n / N;
+  return a * g / N;
 }
+
+// N_k, the mean of (1 + cos a)^k over the circle: Gamma(2k + 1) / (Gamma(k + 1)^2 2^k); 1 for k = 1.
+double focus_norm(double k) { return std::exp(std::lgamma(2 * k + 1) - 2 * std::lgamma(k + 1) - k * std::log(2.0)); }
 
 // The opening discount of neighbour q seen by p: D = exp(-s / u) for s = dv.e > 0 (dv = v_q - v_p),
 // else 1; with dD/ds, ds/d(dv) = e, ds/de = dv and dD/du.
@@ -140,28 +145,28 @@ double opening_discount(const Vec2& dv, const Vec2& e, double u, double* dD_ds, 
 }
 }  // namespace
 
-std::vector<double> local_density_ahead(const std::vector<Vec2>& x, const std::vector<Vec2>& heading, double R,
+std::vector<double> local_density_ahead(const std::vector<Vec2>& x, const std::vector<Vec2>& heading, double R, double focus,
                                         const std::vector<Vec2>* v, double opening) {
   std::vector<double> rho(x.size(), 0.0);
-  const double norm = 2 / (M_PI * R * R);
+  const double norm = 2 / (M_PI * R * R), Nk = focus_norm(focus);
   const bool discount = v && opening > 0;
   for_each_within(x, 0, R, [&](size_t p, size_t q, double) {
-    const double W = ahead_weight(x[q] - x[p], heading[p], R, nullptr, nullptr);
+    const double W = ahead_weight(x[q] - x[p], heading[p], R, focus, Nk, nullptr, nullptr);
     rho[p] += discount && p != q ? W * opening_discount((*v)[q] - (*v)[p], heading[p], opening, nullptr, nullptr) : W;
   });
   for (double& r : rho) r *= norm;
   return rho;
 }
 
-void local_density_ahead_vjp(const std::vector<Vec2>& x, const std::vector<Vec2>& heading, double R,
+void local_density_ahead_vjp(const std::vector<Vec2>& x, const std::vector<Vec2>& heading, double R, double focus,
                              const std::vector<double>& rho_bar, std::vector<Vec2>& x_bar, std::vector<Vec2>& heading_bar,
                              const std::vector<Vec2>* v, double opening, std::vector<Vec2>* v_bar, double* opening_bar) {
-  const double norm = 2 / (M_PI * R * R);
+  const double norm = 2 / (M_PI * R * R), Nk = focus_norm(focus);
   const bool discount = v && opening > 0;
   for_each_within(x, 0, R, [&](size_t p, size_t q, double) {
     if (p == q || rho_bar[p] == 0) return;
     Vec2 dr = Vec2::Zero(), de = Vec2::Zero();
-    const double W = ahead_weight(x[q] - x[p], heading[p], R, &dr, &de);
+    const double W = ahead_weight(x[q] - x[p], heading[p], R, focus, Nk, &dr, &de);
     const double g = rho_bar[p] * norm;
     if (!discount) {
       x_bar[q] += g * dr;
