@@ -190,7 +190,7 @@ const char* kTrainHelp =
     "  --params LIST      comma-separated scalars to learn (default: all the kind has; crowd:\n"
     "                     E,gamma,tension_scale,tau,v0_scale,comfort_distance,alignment_time,\n"
     "                     and time_gap, headway_gap, density_speed_gamma, density_speed_max,\n"
-    "                     density_opening_speed\n"
+    "                     density_opening_speed, density_speed_floor\n"
     "                     where the starting model has them on (above 0);\n"
     "                     fluid: the same without tension_scale; social_force:\n"
     "                     tau,v0_scale,sf_A,sf_B,sf_k,sf_kappa); 'none': only the network and\n"

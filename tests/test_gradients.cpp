@@ -320,7 +320,7 @@ const char* kGradientScene = R"({"format": "crowdmpm-scenario", "version": 1, "n
               "behaviour": {"type": "goal", "target": "out"}}]})";
 
 Model gradient_model(double time_gap = 0, double headway_gap = 0, double density_gamma = 0, double density_opening = 0,
-                     double density_reach = 1, double density_focus = 1) {
+                     double density_reach = 1, double density_focus = 1, double density_floor = 0) {
   Model m = Model::default_model();
   m.set("time_gap", time_gap);
   m.set("headway_gap", headway_gap);
@@ -328,6 +328,7 @@ Model gradient_model(double time_gap = 0, double headway_gap = 0, double density
   m.set("density_opening_speed", density_opening);
   m.set("density_speed_reach", density_reach);
   m.set("density_speed_focus", density_focus);
+  m.set("density_speed_floor", density_floor);
   // The scene's contacts were laid out for these (the default model's comfort distance is
   // smaller): every part of the step stays active.
   m.set("comfort_distance", 0.3);
@@ -352,7 +353,7 @@ namespace {
 // from then on; their entry state is data (J set to the crowd's, as a constant).
 double window_gradient_error(int steps, double time_gap = 0, bool entering = false, double headway_gap = 0,
                              double density_gamma = 0, double density_opening = 0, double density_reach = 1,
-                             double density_focus = 1) {
+                             double density_focus = 1, double density_floor = 0) {
   const ScenarioDef s = ScenarioDef::parse_text(kGradientScene);
   Rng rng(99);
   std::vector<std::vector<Vec2>> target(steps + 1);
@@ -386,7 +387,7 @@ double window_gradient_error(int steps, double time_gap = 0, bool entering = fal
     ++entered;
   };
   {
-    auto sim = make_sim(gradient_model(time_gap, headway_gap, density_gamma, density_opening, density_reach, density_focus));
+    auto sim = make_sim(gradient_model(time_gap, headway_gap, density_gamma, density_opening, density_reach, density_focus, density_floor));
     for (int k = 1; k <= steps; ++k)
       for (size_t p = 0; p < sim->world().size() + 2; ++p) target[static_cast<size_t>(k)].push_back(Vec2(4 * rng.uniform(), 4 * rng.uniform()));
   }
@@ -399,7 +400,7 @@ double window_gradient_error(int steps, double time_gap = 0, bool entering = fal
     }
     return L;
   };
-  Model model = gradient_model(time_gap, headway_gap, density_gamma, density_opening, density_reach, density_focus);
+  Model model = gradient_model(time_gap, headway_gap, density_gamma, density_opening, density_reach, density_focus, density_floor);
   auto sim = make_sim(model);
   // The scene must exercise contacts and the traction network.
   REQUIRE(sim->pair_stats().pairs > 10);
@@ -411,6 +412,7 @@ double window_gradient_error(int steps, double time_gap = 0, bool entering = fal
   if (entering) REQUIRE(entered == 2);
   // The opening discount must be at work (people ahead walking away), not a no-op.
   if (density_opening > 0) REQUIRE(g.params.density_opening_speed != 0);
+  if (density_floor > 0) REQUIRE(g.params.density_speed_floor != 0);
   double worst = 0;
   int count = 0;
   auto compare = [&](const char* what, double analytic, double fd) {
@@ -543,6 +545,12 @@ TEST_CASE("12-step window gradient with the density ahead read over 2.5 m with f
   // not whole); the law and opening discount as above. The kernel's shape is not learned: its
   // derivatives along positions, headings and velocities are what is checked.
   CHECK(window_gradient_error(12, 0.8, false, 0, 1.913, 0.1, 2.5, 2.5) < 3e-5);
+}
+
+TEST_CASE("12-step window gradient with the density-speed law's floor matches central differences", "[gradients]") {
+  // density_speed_floor 0.3: the law's factor is 0.3 + 0.7 f. Its own gradient (1 - f per unit
+  // of the factor's adjoint), the law's (scaled by 0.7) and the density ahead's, against differences.
+  CHECK(window_gradient_error(12, 0.8, false, 0, 1.913, 0.1, 1, 1, 0.3) < 3e-5);
 }
 
 // The kernel adjoints chained by hand over two steps (a drive towards rest, pair traction, grid

@@ -144,15 +144,23 @@ std::vector<double> material_density(const StepInputs& in, const std::vector<Vec
   return material_density_law(P) ? local_density_ahead(x, heading, P.density_speed_reach, P.density_speed_focus, &v, P.density_opening_speed) : std::vector<double>();
 }
 
-double material_density_factor(const MaterialParams& P, const TermPoint& pt) {
+namespace {
+// Weidmann's factor f of the material's law at the density ahead, before the floor.
+double weidmann_factor(const MaterialParams& P, const TermPoint& pt) {
   double f = 1;
-  if (!material_density_law(P)) return f;
   const double law[2] = {P.density_speed_gamma, P.density_speed_max};
   Vec2 unused = Vec2::Zero();
   TermPoint at = pt;
   at.density = pt.density_ahead;
   density_speed_term()->eval(law, at, unused, f);
   return f;
+}
+}  // namespace
+
+double material_density_factor(const MaterialParams& P, const TermPoint& pt) {
+  if (!material_density_law(P)) return 1;
+  const double phi = P.density_speed_floor;
+  return phi + (1 - phi) * weidmann_factor(P, pt);
 }
 
 double material_density_factor_vjp(const MaterialParams& P, const TermPoint& pt, double f_bar, MaterialParams& grad) {
@@ -162,9 +170,11 @@ double material_density_factor_vjp(const MaterialParams& P, const TermPoint& pt,
   Vec2 x_bar = Vec2::Zero(), v_bar = Vec2::Zero();  // the law reads neither
   TermPoint at = pt;
   at.density = pt.density_ahead;
-  density_speed_term()->vjp(law, at, Vec2::Zero(), f_bar, x_bar, v_bar, law_bar);
+  const double phi = P.density_speed_floor;
+  density_speed_term()->vjp(law, at, Vec2::Zero(), f_bar * (1 - phi), x_bar, v_bar, law_bar);
   grad.density_speed_gamma += law_bar[0];
   grad.density_speed_max += law_bar[1];
+  grad.density_speed_floor += f_bar * (1 - weidmann_factor(P, pt));
   // df/drho of the same law, a smooth function of one variable: central differences (DESIGN.md
   // section 4 allows local derivatives of pointwise functions).
   const double h = 1e-6 * std::max(pt.density_ahead, 1.0);

@@ -135,8 +135,9 @@ std::vector<double> material_density(const StepInputs& in, const std::vector<Vec
                                      const std::vector<Vec2>& v);
 // The material's own density-speed law (density_speed_gamma > 0; the "density_speed" term's
 // formula with the model's gamma and max density, at the density ahead of the person,
-// pt.density_ahead): the factor f on the free speed at pt (1 when off), and, given dL/df, adds
-// dL/d(density_speed_gamma) and dL/d(density_speed_max) to grad and returns dL/d(pt.density_ahead)
+// pt.density_ahead), raised by its floor phi (density_speed_floor) to phi + (1 - phi) f: the factor
+// on the free speed at pt (1 when off), and, given dL/df, adds dL/d(density_speed_gamma),
+// dL/d(density_speed_max) and dL/d(density_speed_floor) to grad and returns dL/d(pt.density_ahead)
 // (which local_density_ahead_vjp, world.hpp, takes on to the positions and headings).
 inline bool material_density_law(const MaterialParams& P) { return P.density_speed_gamma > 0; }
 double material_density_factor(const MaterialParams& P, const TermPoint& pt);

@@ -34,6 +34,7 @@ const std::vector<ParamInfo>& param_table() {
       {"density_speed_gamma", &MaterialParams::density_speed_gamma, 0, 50, "persons/m^2", kContinuum, false},
       {"density_speed_max", &MaterialParams::density_speed_max, 0.5, 12, "persons/m^2", kContinuum, false},
       {"density_opening_speed", &MaterialParams::density_opening_speed, 0, 5, "m/s", kContinuum, false},
+      {"density_speed_floor", &MaterialParams::density_speed_floor, 0, 0.9, "1", kContinuum, false},
       // The density ahead's kernel: set by hand (no adjoint with respect to its shape), fixed in training.
       {"density_speed_reach", &MaterialParams::density_speed_reach, 0.5, 5, "m", kFixed, false},
       {"density_speed_focus", &MaterialParams::density_speed_focus, 1, 8, "1", kFixed, false},
@@ -177,6 +178,11 @@ std::string ParamInfo::not_learnable_in(const Model& m) const {
     return m.params.density_speed_gamma == 0
                ? "density_opening_speed belongs to the density-speed law, which is off in the starting model (density_speed_gamma 0)"
                : "density_opening_speed is 0 in the starting model (everyone ahead counts in full): start from a value above 0 to "
+                 "learn it (it is learned in log coordinates)";
+  if (field == &MaterialParams::density_speed_floor && (m.params.density_speed_gamma == 0 || m.params.density_speed_floor == 0))
+    return m.params.density_speed_gamma == 0
+               ? "density_speed_floor belongs to the density-speed law, which is off in the starting model (density_speed_gamma 0)"
+               : "density_speed_floor is 0 in the starting model (the law goes down to standstill): start from a value above 0 to "
                  "learn it (it is learned in log coordinates)";
   if ((learned_by & (m.is_continuum() ? kContinuum : kSocialForce)) == 0)
     return std::string(name) + " is not learned by the " + material_name(m.material) + " model";
