@@ -174,16 +174,15 @@ std::string ParamInfo::not_learnable_in(const Model& m) const {
       m.params.density_speed_gamma == 0)
     return std::string(name) + " belongs to the density-speed law, which is off in the starting model "
            "(density_speed_gamma 0): start from a value above 0 to learn it (it is learned in log coordinates)";
-  if (field == &MaterialParams::density_opening_speed && (m.params.density_speed_gamma == 0 || m.params.density_opening_speed == 0))
-    return m.params.density_speed_gamma == 0
-               ? "density_opening_speed belongs to the density-speed law, which is off in the starting model (density_speed_gamma 0)"
-               : "density_opening_speed is 0 in the starting model (everyone ahead counts in full): start from a value above 0 to "
-                 "learn it (it is learned in log coordinates)";
-  if (field == &MaterialParams::density_speed_floor && (m.params.density_speed_gamma == 0 || m.params.density_speed_floor == 0))
-    return m.params.density_speed_gamma == 0
-               ? "density_speed_floor belongs to the density-speed law, which is off in the starting model (density_speed_gamma 0)"
-               : "density_speed_floor is 0 in the starting model (the law goes down to standstill): start from a value above 0 to "
-                 "learn it (it is learned in log coordinates)";
+  // The law's opening speed and floor: learned only with the law on and from a start above 0.
+  const bool opening = field == &MaterialParams::density_opening_speed, floor = field == &MaterialParams::density_speed_floor;
+  if ((opening || floor) && (m.params.density_speed_gamma == 0 || m.params.*field == 0))
+    return std::string(name) +
+           (m.params.density_speed_gamma == 0
+                ? " belongs to the density-speed law, which is off in the starting model (density_speed_gamma 0)"
+                : std::string(" is 0 in the starting model (") +
+                      (opening ? "everyone ahead counts in full" : "the law goes down to standstill") +
+                      "): start from a value above 0 to learn it (it is learned in log coordinates)");
   if ((learned_by & (m.is_continuum() ? kContinuum : kSocialForce)) == 0)
     return std::string(name) + " is not learned by the " + material_name(m.material) + " model";
   return {};

@@ -119,10 +119,13 @@ double ahead_weight(const Vec2& r, const Vec2& e, double R, double k, double Nk,
   const double n = r.norm(), a = 1 - r.squaredNorm() / (R * R);
   if (!(n > 0)) return a;  // the agent itself
   const double c = r.dot(e) / n;
-  const double g = k == 1 ? (1 + c) : std::pow(1 + c, k), dg = k == 1 ? 1 : k * std::pow(1 + c, k - 1);  // (1+c)^k, d/dc
-  const double N = e.squaredNorm() > 0 ? Nk : 1;  // no heading: every neighbour weighs 1 (c = 0)
-  if (dr) *dr = (g * (-2 / (R * R)) * r + a * dg * (e - c * r / n) / n) / N;
-  if (de) *de = a * dg * r / n / N;
+  const double g = k == 1 ? (1 + c) : std::pow(1 + c, k);  // (1 + c)^k
+  const double N = e.squaredNorm() > 0 ? Nk : 1;              // no heading: every neighbour weighs 1 (c = 0)
+  if (dr || de) {
+    const double dg = k == 1 ? 1 : k * std::pow(1 + c, k - 1);  // d(1 + c)^k / dc, only for the adjoint
+    if (dr) *dr = (g * (-2 / (R * R)) * r + a * dg * (e - c * r / n) / n) / N;
+    if (de) *de = a * dg * r / n / N;
+  }
   return a * g / N;
 }
 
