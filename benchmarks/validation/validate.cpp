@@ -3,8 +3,8 @@
 //
 //   validate fd --model M [--densities 0.5,1,...] [--threads N] [--warmup S] [--measure S]
 //   validate bottleneck --model M [--widths 0.4,0.8,...] [--threads N] [--density D | --density D1,D2,...]
-//                       [--people N | --people N1,N2,...]
-//   validate replay --model M --scenario S --trajectories T --line x0,y0,x1,y1 [--curve CSV]
+//                       [--people N | --people N1,N2,...] [--repeats K]
+//   validate replay --model M --scenario S --trajectories T --line x0,y0,x1,y1 [--curve CSV] [--repeats K]
 //   validate measure --trajectories T --box x0,y0,x1,y1   (classic density and speed, 1 /s)
 //   validate chart --out PNG --title T --x LABEL --y LABEL --series SPEC [--series SPEC ...]
 //     SPEC = NAME|CSV|XCOL|YCOL|STYLE|RRGGBB[|YCOL2]: columns of a CSV with a header row (lines
@@ -20,6 +20,9 @@
 // people than that holds) in front of a wall with an opening of width b (0.4 m thick) and
 // leaves through it; the flow is the passages
 // between the 20th and the 80th percentile over their time span (persons/s).
+// --repeats K (bottleneck and replay): a crowd squeezing through a door is chaotic, so one run
+// is one draw; K runs (the waiting crowd placed with seeds 1..K; the replay exact and with its
+// entry points jittered by 2 cm with seeds 2..K) give the mean and the spread.
 // Both print CSV on stdout and report the peak count of people in any 1 m x 1 m box (sampled
 // every second on a 0.25 m lattice of box positions).
 #include <algorithm>
@@ -40,8 +43,8 @@ using namespace crowdmpm;
 namespace {
 [[noreturn]] void usage(const std::string& msg) {
   std::fprintf(stderr, "validate: %s\nusage: validate fd|bottleneck|replay --model M [--densities LIST | --widths LIST] "
-                       "[--threads N] [--warmup S] [--measure S] [--density D] [--people N]\n"
-                       "       validate replay --model M --scenario S --trajectories T --line x0,y0,x1,y1 [--curve CSV]\n"
+                       "[--threads N] [--warmup S] [--measure S] [--density D] [--people N] [--repeats K]\n"
+                       "       validate replay --model M --scenario S --trajectories T --line x0,y0,x1,y1 [--curve CSV] [--repeats K]\n"
                        "       validate measure --trajectories T --box x0,y0,x1,y1\n"
                        "       validate chart --out PNG --title T --x LABEL --y LABEL --series NAME|CSV|XCOL|YCOL|STYLE|RRGGBB[|YCOL2] ...\n",
                msg.c_str());
@@ -78,43 +81,88 @@ int run_fd(const Model& model, const std::vector<double>& densities, int threads
   return 0;
 }
 
+// Mean, standard deviation (n - 1), least and largest of repeated measurements.
+struct Spread {
+  double mean = 0, sd = 0, min = 0, max = 0;
+};
+Spread spread(const std::vector<double>& v) {
+  Spread s;
+  if (v.empty()) return s;
+  s.min = *std::min_element(v.begin(), v.end());
+  s.max = *std::max_element(v.begin(), v.end());
+  for (double x : v) s.mean += x / static_cast<double>(v.size());
+  for (double x : v) s.sd += v.size() > 1 ? (x - s.mean) * (x - s.mean) / static_cast<double>(v.size() - 1) : 0;
+  s.sd = std::sqrt(s.sd);
+  return s;
+}
+
+// J(b) per width; with repeats > 1 the crowd is placed with seeds 1..repeats and J is their mean
+// (J_sd, J_min, J_max: the spread; passages, t20, t80 of seed 1; peak: the largest of all).
 int run_bottleneck(const Model& model, const std::vector<double>& widths, int threads, const std::vector<double>& density,
-                   const std::vector<double>& people) {
+                   const std::vector<double>& people, int repeats) {
   if (density.size() != 1 && density.size() != widths.size())
     usage("--density needs one value, or one per width (" + std::to_string(widths.size()) + ")");
   if (people.size() != 1 && people.size() != widths.size())
     usage("--people needs one value, or one per width (" + std::to_string(widths.size()) + ")");
-  std::printf("b,density,agents,J,passages_used,t20,t80,peak_per_m2,wall_seconds\n");
+  std::printf("b,density,agents,J,passages_used,t20,t80,peak_per_m2,wall_seconds,J_sd,J_min,J_max,repeats\n");
   for (size_t i = 0; i < widths.size(); ++i) {
     const double b = widths[i], rho = density[density.size() == 1 ? 0 : i];
     const auto t0 = std::chrono::steady_clock::now();
-    const BottleneckResult r = bottleneck_flow(model, b, rho, threads, people[people.size() == 1 ? 0 : i]);
+    std::vector<double> flows;
+    BottleneckResult first;
+    int peak = 0;
+    for (int k = 1; k <= repeats; ++k) {
+      const BottleneckResult r = bottleneck_flow(model, b, rho, threads, people[people.size() == 1 ? 0 : i], static_cast<uint64_t>(k));
+      if (k == 1) first = r;
+      flows.push_back(r.flow);
+      peak = std::max(peak, r.peak_per_m2);
+    }
+    const Spread J = spread(flows);
     const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    std::printf("%g,%g,%zu,%.3f,%zu,%.2f,%.2f,%d,%.1f\n", b, rho, r.agents, r.flow, r.passages, r.t20, r.t80, r.peak_per_m2, secs);
+    std::printf("%g,%g,%zu,%.3f,%zu,%.2f,%.2f,%d,%.1f,%.3f,%.3f,%.3f,%d\n", b, rho, first.agents, J.mean, first.passages, first.t20,
+                first.t80, peak, secs, J.sd, J.min, J.max, repeats);
     std::fflush(stdout);
   }
   return 0;
 }
 // N(t) of a whole-run replay against the recording, written as "t,recorded,simulated" rows to
-// `curve` (if given); one summary row on stdout.
+// `curve` (if given); one summary row on stdout. With repeats > 1 the entry points are jittered
+// with seeds 2..repeats beside the exact replay (replay_recording's jitter_seed): J_simulated and
+// ratio are means over all, J_sd, ratio_min and ratio_max the spread, passages_simulated the
+// exact replay's, and the curve's simulated N(t) the mean.
 int run_replay(const Model& model, const std::string& scenario, const std::string& trajectories,
-               const std::vector<double>& line, int threads, const std::string& curve) {
+               const std::vector<double>& line, int threads, const std::string& curve, int repeats) {
   if (line.size() != 4) usage("--line needs x0,y0,x1,y1");
   const ScenarioDef sc = ScenarioDef::load(scenario);
   const TrajectorySet rec = TrajectorySet::read(trajectories);
+  const PassageLine passage{Vec2(line[0], line[1]), Vec2(line[2], line[3])};
   const auto t0 = std::chrono::steady_clock::now();
-  const ReplayResult r = replay_recording(sc, model, rec, PassageLine{Vec2(line[0], line[1]), Vec2(line[2], line[3])}, 30, threads);
+  const std::vector<ReplayResult> runs = replay_repeats(sc, model, rec, passage, repeats, 30, threads);
+  std::vector<double> flows, ratios;
+  for (const ReplayResult& x : runs) {
+    flows.push_back(x.simulated_flow);
+    ratios.push_back(x.recorded_flow > 0 ? x.simulated_flow / x.recorded_flow : 0.0);
+  }
+  const ReplayResult& r = runs.front();
+  const Spread J = spread(flows), ratio = spread(ratios);
+  double duration = 0;
+  for (const ReplayResult& x : runs) duration = std::max(duration, x.duration);
   const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  std::printf("people,placed,passages_recorded,passages_simulated,J_recorded,J_simulated,ratio,duration,wall_seconds\n");
-  std::printf("%zu,%zu,%zu,%zu,%.3f,%.3f,%.3f,%.1f,%.1f\n", r.people, r.placed, r.recorded.size(), r.simulated.size(),
-              r.recorded_flow, r.simulated_flow, r.recorded_flow > 0 ? r.simulated_flow / r.recorded_flow : 0.0, r.duration, secs);
+  std::printf("people,placed,passages_recorded,passages_simulated,J_recorded,J_simulated,ratio,duration,wall_seconds,"
+              "J_sd,ratio_min,ratio_max,repeats\n");
+  std::printf("%zu,%zu,%zu,%zu,%.3f,%.3f,%.3f,%.1f,%.1f,%.3f,%.3f,%.3f,%d\n", r.people, r.placed, r.recorded.size(),
+              r.simulated.size(), r.recorded_flow, J.mean, ratio.mean, duration, secs, J.sd, ratio.min, ratio.max, repeats);
   if (!curve.empty()) {
     std::FILE* f = std::fopen(curve.c_str(), "w");
     if (!f) throw Error("cannot write " + curve);
     std::fprintf(f, "t,recorded,simulated\n");
-    for (double t = 0; t <= r.duration + 1e-9; t += 0.5) {
-      const auto n = [&](const std::vector<double>& v) { return std::upper_bound(v.begin(), v.end(), t) - v.begin(); };
-      std::fprintf(f, "%.1f,%ld,%ld\n", t, static_cast<long>(n(r.recorded)), static_cast<long>(n(r.simulated)));
+    const auto n = [](const std::vector<double>& v, double t) {
+      return static_cast<double>(std::upper_bound(v.begin(), v.end(), t) - v.begin());
+    };
+    for (double t = 0; t <= duration + 1e-9; t += 0.5) {
+      double sim = 0;
+      for (const ReplayResult& x : runs) sim += n(x.simulated, t) / static_cast<double>(runs.size());
+      std::fprintf(f, "%.1f,%ld,%.2f\n", t, static_cast<long>(n(r.recorded, t)), sim);
     }
     std::fclose(f);
   }
@@ -198,7 +246,7 @@ int main(int argc, char** argv) {
   std::string model_path;
   std::vector<double> densities = {0.5, 1, 1.5, 2, 2.5, 3, 3.5, 4, 4.5, 5, 5.5, 6};
   std::vector<double> widths = {0.4, 0.8, 1.0, 1.2, 1.8, 2.4, 3.0, 5.0};
-  int threads = 1;
+  int threads = 1, repeats = 1;
   double warmup = 20, measure = 30;
   std::vector<double> density = {3.5};
   std::vector<double> people = {0};
@@ -216,6 +264,13 @@ int main(int argc, char** argv) {
     else if (a == "--densities") densities = parse_list(value());
     else if (a == "--widths") widths = parse_list(value());
     else if (a == "--threads") threads = std::max(1, std::atoi(value().c_str()));
+    else if (a == "--repeats") {
+      const std::string n = value();
+      char* end = nullptr;
+      const long k = std::strtol(n.c_str(), &end, 10);
+      if (n.empty() || *end || k < 1 || k > 1000) usage("--repeats needs a whole number from 1 to 1000, got '" + n + "'");
+      repeats = static_cast<int>(k);
+    }
     else if (a == "--warmup") warmup = parse_list(value()).at(0);
     else if (a == "--measure") measure = parse_list(value()).at(0);
     else if (a == "--density") density = parse_list(value());
@@ -244,8 +299,8 @@ int main(int argc, char** argv) {
     }
     const Model model = model_path.empty() || model_path == "default" ? Model::default_model() : Model::load(model_path);
     if (what == "fd") return run_fd(model, densities, threads, warmup, measure);
-    if (what == "bottleneck") return run_bottleneck(model, widths, threads, density, people);
-    if (what == "replay") return run_replay(model, scenario, trajectories, line, threads, curve);
+    if (what == "bottleneck") return run_bottleneck(model, widths, threads, density, people, repeats);
+    if (what == "replay") return run_replay(model, scenario, trajectories, line, threads, curve, repeats);
     if (what == "measure") return run_measure(trajectories, line);
     usage("unknown check '" + what + "' (fd, bottleneck, replay, measure or chart)");
   } catch (const Error& e) {

@@ -67,9 +67,10 @@ CorridorResult ring_corridor_speed(const Model& model, double rho, double warmup
   return r;
 }
 
-BottleneckResult bottleneck_flow(const Model& model, double b, double density, int threads, double people) {
+BottleneckResult bottleneck_flow(const Model& model, double b, double density, int threads, double people, uint64_t seed) {
   const double W = std::max(8.0, b + 6), depth = std::max(6.0, people / (W * density)), y0 = W / 2 - b / 2, y1 = W / 2 + b / 2;
-  const std::string scenario = R"({"format": "crowdmpm-scenario", "version": 1, "name": "bottleneck",
+  const std::string scenario = R"({"format": "crowdmpm-scenario", "version": 1, "name": "bottleneck", "seed": )" +
+                               std::to_string(seed) + R"(,
     "domain": {"min": [0, 0], "max": [)" + format_number(depth + 2.4) + ", " + format_number(W) + R"(], "cell_size": 0.5},
     "time": {"dt": 0.01, "duration": 400},
     "geometry": {"obstacles": [{"rect": [)" + format_number(depth) + ", 0, " + format_number(depth + 0.4) + ", " + format_number(y0) + R"(]},

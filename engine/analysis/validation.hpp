@@ -8,6 +8,7 @@
 // - a waiting crowd at a given density in a room 6 m deep in front of a 0.4 m thick wall with an
 //   opening of width b, leaving through it: the flow J(b) is the passages from the 20th to the
 //   80th percentile over their time span.
+#include <cstdint>
 #include <vector>
 
 #include "engine/sim/simulation.hpp"
@@ -32,7 +33,10 @@ struct BottleneckResult {
 };
 // people > 0: the room is made deeper than 6 m where needed to hold that many at the density
 // (the crowd of the experiment measured; a shallow crowd drains before the flow settles).
-BottleneckResult bottleneck_flow(const Model& m, double width, double density, int threads = 1, double people = 0);
+// seed: the scenario's seed, which places the waiting crowd (the flow through a door is chaotic:
+// seeds 1, 2, ... give the spread of J).
+BottleneckResult bottleneck_flow(const Model& m, double width, double density, int threads = 1, double people = 0,
+                                 uint64_t seed = 1);
 
 // Most people in any 1 m x 1 m box whose corner lies on a 0.25 m lattice.
 int peak_box_count(const World& w);

@@ -41,7 +41,7 @@ double middle_flow(const std::vector<double>& times) {
 }
 
 ReplayResult replay_recording(const ScenarioDef& scenario, const Model& model, const TrajectorySet& rec,
-                              const PassageLine& line, double extra, int threads) {
+                              const PassageLine& line, double extra, int threads, uint64_t jitter_seed) {
   ReplayResult r;
   r.recorded = recorded_passages(rec, line);
   // Each person's first appearance, and the velocity over their first half second.
@@ -63,6 +63,13 @@ ReplayResult replay_recording(const ScenarioDef& scenario, const Model& model, c
   for (const auto& kv : first) arrivals.push_back(kv.second);
   std::stable_sort(arrivals.begin(), arrivals.end(), [](const Arrival& a, const Arrival& b) { return a.time < b.time; });
   r.people = arrivals.size();
+  if (jitter_seed > 0) {
+    Rng rng(jitter_seed);
+    for (Arrival& a : arrivals) {
+      const double dx = rng.normal(), dy = rng.normal();
+      a.x += kReplayJitter * Vec2(dx, dy);
+    }
+  }
 
   const ScenarioDef sc = window_scenario(scenario, true);
   Simulation sim(sc, model, threads);
@@ -116,6 +123,21 @@ ReplayResult replay_recording(const ScenarioDef& scenario, const Model& model, c
   r.recorded_flow = middle_flow(r.recorded);
   r.simulated_flow = middle_flow(r.simulated);
   return r;
+}
+
+std::vector<ReplayResult> replay_repeats(const ScenarioDef& scenario, const Model& model, const TrajectorySet& recording,
+                                         const PassageLine& line, int repeats, double extra, int threads) {
+  if (repeats < 1) throw Error("replay: repeats must be at least 1, got " + std::to_string(repeats));
+  std::vector<ReplayResult> runs;
+  for (int k = 1; k <= repeats; ++k)
+    runs.push_back(replay_recording(scenario, model, recording, line, extra, threads, k == 1 ? 0 : static_cast<uint64_t>(k)));
+  return runs;
+}
+
+double mean_simulated_flow(const std::vector<ReplayResult>& runs) {
+  double sum = 0;
+  for (const ReplayResult& r : runs) sum += r.simulated_flow;
+  return runs.empty() ? 0 : sum / static_cast<double>(runs.size());
 }
 
 }  // namespace crowdmpm

@@ -3,6 +3,7 @@
 // recording first shows them, at the first frame or when they enter the view later (the
 // recorded arrivals), and the model walks them through the venue; the passages through a line
 // (a bottleneck) over time, N(t), are compared with the recording's.
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -36,7 +37,17 @@ double middle_flow(const std::vector<double>& passage_times);
 // comfort distance (not shrunk to fit a dense recording). Runs until everyone recorded has
 // entered and the simulation has been quiet for `extra` seconds, or the recording's duration
 // plus `extra`.
+// jitter_seed > 0 moves every entry point by a Gaussian offset of kReplayJitter per axis drawn
+// from that seed: a crowd squeezing through a bottleneck is chaotic (a change of 1e-7 in one
+// parameter moves a CrowdQueue replay's flow by 10%), so one replay is one draw; repeats with
+// seeds 1, 2, ... give the spread (benchmarks/validation/validate.cpp --repeats).
+constexpr double kReplayJitter = 0.02;  // m: the order of a camera tracker's position error
 ReplayResult replay_recording(const ScenarioDef& scenario, const Model& model, const TrajectorySet& recording,
-                              const PassageLine& line, double extra = 30, int threads = 1);
+                              const PassageLine& line, double extra = 30, int threads = 1, uint64_t jitter_seed = 0);
+// `repeats` replays: the exact one (jitter_seed 0), then jitter seeds 2, 3, ..., repeats.
+std::vector<ReplayResult> replay_repeats(const ScenarioDef& scenario, const Model& model, const TrajectorySet& recording,
+                                         const PassageLine& line, int repeats, double extra = 30, int threads = 1);
+// Mean of the simulated flows of replays.
+double mean_simulated_flow(const std::vector<ReplayResult>& runs);
 
 }  // namespace crowdmpm
