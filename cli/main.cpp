@@ -235,7 +235,9 @@ const char* kTrainHelp =
     "  venue is the ground in view, without walls, and people walk on the way they moved.\n"
     "  'crowdmpm predict --video ...' with the same options predicts the rest of the video from\n"
     "  its first held-out field and prints Err_vel at --horizons (default 7) horizons for\n"
-    "  persistence, constant velocity, the untrained default and every --model.\n";
+    "  persistence, constant velocity, the untrained default and every --model; a particle\n"
+    "  method's field is the mean of --ensemble (default 4) rollouts, each from the sampled\n"
+    "  lattice shifted (a node empty in a rollout counts velocity 0 there, as in Err_vel).\n";
 
 const char* kFlowHelp =
     "usage: crowdmpm flow VIDEO --out DIR (--calibration CAL | --scale M_PER_PX) [options]\n"
@@ -495,6 +497,7 @@ Args parse_args(int argc, char** argv, int first) {
       a.video_learn.train_share = parse_double(s, value(s.c_str()), 0.05, 0.95, "a share in [0.05, 0.95]");
       a.train_share_given = true;
     }
+    else if (s == "--ensemble") a.video_learn.ensemble = static_cast<int>(parse_double(s, value(s.c_str()), 1, 64, "1..64 rollouts"));
     else if (s == "--horizons") a.video_learn.horizons = static_cast<int>(parse_double(s, value(s.c_str()), 1, 100, "1..100"));
     else if (s == "--calibration") a.video.calibration = value("--calibration");
     else if (s == "--scale") a.video.scale = parse_double(s, value("--scale"), 1e-6, 100, "metres per pixel in (0, 100]");

@@ -282,6 +282,35 @@ TEST_CASE("particles sampled from a field fill its moving nodes at the density a
   }
   CHECK(s.ids.front() == 1);
   CHECK(s.speed.size() == s.x.size());
+
+  // The shifted lattices of a prediction's ensemble: the same density over the same nodes, other
+  // points; the first shift is none, and the shifts differ from each other.
+  CHECK(ensemble_offset(0) == Vec2::Zero());
+  const ObservedState same = sample_particles(f, 6, nullptr, ensemble_offset(0));
+  REQUIRE(same.x.size() == s.x.size());
+  for (size_t p = 0; p < s.x.size(); ++p) CHECK(same.x[p] == s.x[p]);
+  for (int k = 1; k < 8; ++k) {
+    const Vec2 o = ensemble_offset(k);
+    INFO("shift " << k << ": (" << o.x() << ", " << o.y() << ")");
+    CHECK(o.minCoeff() >= 0);
+    CHECK(o.maxCoeff() < 1);
+    for (int m = 0; m < k; ++m) CHECK((o - ensemble_offset(m)).norm() > 0.05);
+    const ObservedState t = sample_particles(f, 6, nullptr, o);
+    CHECK(std::abs(static_cast<double>(t.x.size()) / area - 6) < 0.6);
+    double nearest_sum = 0;
+    for (const Vec2& x : t.x) {
+      double nearest = 1e9;
+      for (const Vec2& y : s.x) nearest = std::min(nearest, (x - y).norm());
+      nearest_sum += nearest;
+      CHECK(x.x() > 1.74);
+      CHECK(x.x() < 5.76);
+    }
+    CHECK(nearest_sum / static_cast<double>(t.x.size()) > 0.05);  // moved, not the same lattice
+  }
+  CHECK_THROWS_WITH(sample_particles(f, 6, nullptr, Vec2(std::nan(""), 0)), Contains("offset is not finite"));
+  VideoLearnOptions bad;
+  bad.ensemble = 0;
+  CHECK_THROWS_WITH(bad.check(), Contains("ensemble must be 1..64"));
 }
 
 TEST_CASE("the heading behaviour walks on in the direction of the velocity at entry", "[vision]") {

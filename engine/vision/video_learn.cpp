@@ -17,17 +17,29 @@ void VideoLearnOptions::check() const {
   if (start_frames < 1) throw Error("video learning: start_frames must be >= 1");
   if (!(presence >= 0)) throw Error("video learning: presence must be >= 0 s");
   if (horizons < 1 || horizons > 100) throw Error("video learning: horizons must be 1..100");
+  if (ensemble < 1 || ensemble > 64) throw Error("video learning: ensemble must be 1..64 rollouts, got " + std::to_string(ensemble));
 }
 
-ObservedState sample_particles(const GridVelocityField& f, double density, const Geometry* venue) {
+Vec2 ensemble_offset(int k) {
+  const double g = 1.32471795724474602596;  // the plastic number: x^3 = x + 1
+  const double a = static_cast<double>(k) / g, b = static_cast<double>(k) / (g * g);
+  return Vec2(a - std::floor(a), b - std::floor(b));
+}
+
+ObservedState sample_particles(const GridVelocityField& f, double density, const Geometry* venue, const Vec2& offset) {
   if (!(density > 0)) throw Error("sample_particles: density must be > 0");
+  if (!offset.allFinite()) throw Error("sample_particles: the lattice offset is not finite");
   ObservedState s;
   const double a = hexagonal_spacing(density);
   const double row = a * std::sqrt(3.0) / 2;
   const Vec2 lo = f.origin, hi = f.origin + f.dx * Vec2(f.nx - 1, f.ny - 1);
+  const double ox = a * (offset.x() - std::floor(offset.x())), oy = 2 * row * (offset.y() - std::floor(offset.y()));
+  // A shifted lattice starts a period before the edge so that it still covers it (the points
+  // before the edge are skipped); the unshifted one starts on it.
   int r = 0;
-  for (double y = lo.y(); y <= hi.y(); y += row, ++r)
-    for (double x = lo.x() + (r % 2 ? a / 2 : 0); x <= hi.x(); x += a) {
+  for (double y = lo.y() + (oy > 0 ? oy - 2 * row : 0); y <= hi.y(); y += row, ++r)
+    for (double x = lo.x() + (ox > 0 ? ox - a : 0) + (r % 2 ? a / 2 : 0); x <= hi.x(); x += a) {
+      if (x < lo.x() || y < lo.y()) continue;
       const int i = static_cast<int>(std::lround((x - f.origin.x()) / f.dx)), j = static_cast<int>(std::lround((y - f.origin.y()) / f.dx));
       if (i < 0 || j < 0 || i >= f.nx || j >= f.ny || !(f.mask[static_cast<size_t>(j) * f.nx + i] > 0)) continue;
       const Vec2 p(x, y);
@@ -145,6 +157,24 @@ void score(const GridVelocityField& pred, const GridVelocityField& obs, const st
   h.empty = n ? static_cast<double>(empty) / static_cast<double>(n) : 0;
 }
 
+// The mean of an ensemble's predicted fields, a node where a member has nobody counting as
+// velocity 0 in it (as Err_vel scores it); kept where any member has somebody.
+GridVelocityField ensemble_mean(const std::vector<GridVelocityField>& members) {
+  GridVelocityField m = members.front();
+  for (size_t i = 0; i < m.velocity.size(); ++i) {
+    Vec2 sum = Vec2::Zero();
+    double any = 0;
+    for (const GridVelocityField& f : members)
+      if (f.mask[i] > 0) {
+        sum += f.velocity[i];
+        any = 1;
+      }
+    m.velocity[i] = sum / static_cast<double>(members.size());
+    m.mask[i] = any;
+  }
+  return m;
+}
+
 }  // namespace
 
 std::vector<VideoPrediction> predict_video(const ScenarioDef& scenario, const std::vector<Model>& models,
@@ -174,8 +204,11 @@ std::vector<VideoPrediction> predict_video(const ScenarioDef& scenario, const st
     if (at.empty() || h > at.back()) at.push_back(h);
   }
   const GridVelocityField sf = start_field(fields, start, fps, vo);
-  const ObservedState s = sample_particles(sf, vo.density, &scenario.geo);
-  if (s.ids.empty()) throw Error("video prediction: the field at the start of the held-out part keeps no moving node");
+  std::vector<ObservedState> samples;
+  for (int k = 0; k < vo.ensemble; ++k) {
+    samples.push_back(sample_particles(sf, vo.density, &scenario.geo, ensemble_offset(k)));
+    if (samples.back().ids.empty()) throw Error("video prediction: the field at the start of the held-out part keeps no moving node");
+  }
   std::vector<VideoPrediction> out;
   auto add = [&](const std::string& method, const std::function<GridVelocityField(size_t)>& predict) {
     VideoPrediction p;
@@ -196,30 +229,36 @@ std::vector<VideoPrediction> predict_video(const ScenarioDef& scenario, const st
   shape.ny = f0.ny;
   add("persistence", [&](size_t) { return fields[start]; });
   add("constant velocity", [&](size_t h) {
-    std::vector<Vec2> x(s.x.size());
-    for (size_t p = 0; p < x.size(); ++p) x[p] = s.x[p] + s.v[p] * (static_cast<double>(h) / fps);
-    return grid_velocity_of(x, s.v, 1, shape, vo.min_mass);
+    std::vector<GridVelocityField> members;
+    for (const ObservedState& s : samples) {
+      std::vector<Vec2> x(s.x.size());
+      for (size_t p = 0; p < x.size(); ++p) x[p] = s.x[p] + s.v[p] * (static_cast<double>(h) / fps);
+      members.push_back(grid_velocity_of(x, s.v, 1, shape, vo.min_mass));
+    }
+    return ensemble_mean(members);
   });
   const ScenarioDef windowed = window_scenario(scenario, true);  // people leave by the exits, as they do on video
   EdgeInflow inflow;
   if (vo.inflow) inflow = edge_inflow(sf, covered, scenario.geo, vo.density);
   for (const Model& m : models) {
-    WindowSim ws = start_window(windowed, m, s, WindowOptions{threads, vo.desired_speed});
-    Simulation& sim = *ws.sim;
-    InflowRun run(inflow, vo.desired_speed);
-    std::vector<GridVelocityField> at_h;
-    size_t done = 0;
-    for (size_t h : at) {
-      const long target = std::lround(static_cast<double>(h) / fps / windowed.dt);
-      while (static_cast<long>(done) < target) {
-        sim.step();
-        ++done;
-        run.after_step(sim);
+    std::vector<std::vector<GridVelocityField>> at_h(at.size());  // per horizon, per member
+    for (const ObservedState& s : samples) {
+      WindowSim ws = start_window(windowed, m, s, WindowOptions{threads, vo.desired_speed});
+      Simulation& sim = *ws.sim;
+      InflowRun run(inflow, vo.desired_speed);
+      size_t done = 0;
+      for (size_t i = 0; i < at.size(); ++i) {
+        const long target = std::lround(static_cast<double>(at[i]) / fps / windowed.dt);
+        while (static_cast<long>(done) < target) {
+          sim.step();
+          ++done;
+          run.after_step(sim);
+        }
+        at_h[i].push_back(grid_velocity_of(sim.world().x, sim.world().v, 1, sim.grid(), vo.min_mass));
       }
-      at_h.push_back(grid_velocity_of(sim.world().x, sim.world().v, 1, sim.grid(), vo.min_mass));
     }
     size_t k = 0;
-    add(model_label(m), [&](size_t) { return at_h[k++]; });
+    add(model_label(m), [&](size_t) { return ensemble_mean(at_h[k++]); });
   }
   return out;
 }

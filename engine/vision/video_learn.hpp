@@ -35,6 +35,11 @@ struct VideoLearnOptions {
   // view empties from upstream, and training would fit a material that holds the crowd back
   // to make up for the people who never walked in.
   bool inflow = true;
+  // A prediction by particles is the mean of this many rollouts from the same field, each with
+  // its lattice of sampled particles shifted (ensemble_offset); the first is unshifted. Err_vel
+  // scores a mean square, and which nodes a single lattice leaves empty is chance: the mean
+  // over placements is the expected field (a node empty in a rollout counts 0 there, as in Err_vel).
+  int ensemble = 4;
   void check() const;
 };
 
@@ -43,7 +48,13 @@ struct VideoLearnOptions {
 // weights of the kept nodes. ids 1..n; speed = free speed = |v|. With a venue, points closer
 // than half the lattice spacing to a wall, an obstacle or the domain's edge are left out (flow
 // splatted across a wall would otherwise put people inside it, and pushing them out piles them up).
-ObservedState sample_particles(const GridVelocityField& field, double density, const Geometry* venue = nullptr);
+// `offset` shifts the lattice by that fraction of its period (x: the spacing, y: two rows).
+ObservedState sample_particles(const GridVelocityField& field, double density, const Geometry* venue = nullptr,
+                               const Vec2& offset = Vec2::Zero());
+
+// The k-th lattice shift of an ensemble (k = 0: none): the additive recurrence of the plastic
+// number, which covers the unit square evenly for every count.
+Vec2 ensemble_offset(int k);
 
 // The field a state at fields[start] is sampled from: the mean of the last vo.start_frames fields
 // where they move, and velocity 0 where the crowd moved within vo.presence seconds but no longer does.
