@@ -309,6 +309,73 @@ TEST_CASE("density ahead: a uniform crowd at its density whichever way people fa
   CHECK_THROWS_WITH(m.set("density_speed_reach", 0.1), Catch::Contains("density_speed_reach must be in [0.5, 5] m"));
 }
 
+TEST_CASE("density per walkable area: a corridor narrower than the kernel reads its density, its share's adjoint is exact", "[units]") {
+  // A corridor 2.5 m wide (the domain's border is its wall) filled with the hexagonal lattice at
+  // 2.5 persons/m^2, everyone walking along it; the law's kernel reaches 2 m, past both walls.
+  Geometry geo;
+  geo.lo = Vec2(0, 0);
+  geo.hi = Vec2(30, 2.5);
+  const double rho = 2.5, a = hexagonal_spacing(rho);
+  std::vector<Vec2> x, heading;
+  for (int j = 0; (j + 0.5) * a * std::sqrt(3.0) / 2 < 2.5; ++j)
+    for (int i = 0; (i + 0.5) * a < 30; ++i) {
+      x.emplace_back((i + 0.25 + 0.5 * (j & 1)) * a, (j + 0.5) * a * std::sqrt(3.0) / 2);
+      heading.emplace_back(1, 0);
+    }
+  const double density = static_cast<double>(x.size()) / (30 * 2.5);  // the corridor's own
+  const WalkableLattice walk = walkable_lattice(geo, 0.25);
+  REQUIRE_FALSE(walk.empty());
+  const std::vector<double> plain = local_density_ahead(x, heading, 2.0, 1.0);
+  std::vector<double> per_area = plain;
+  per_walkable_area(walk, x, heading, 2.0, 1.0, per_area);
+  const std::vector<double> share = walkable_share_ahead(walk, x, heading, 2.0, 1.0);
+  int middle = 0;
+  for (size_t p = 0; p < x.size(); ++p) {
+    CHECK(share[p] > 0);
+    CHECK(share[p] < 1);  // everyone is within 2 m of a wall
+    if (std::abs(x[p].x() - 15) > 5) continue;
+    ++middle;
+    CHECK(share[p] > 0.55);  // a 2.5 m band of a 4 m disc, the kernel heaviest near its centre
+    CHECK(share[p] < 0.9);
+    CHECK(plain[p] < 0.9 * density);  // the area behind the walls taken for empty
+    CHECK(per_area[p] == Approx(density).epsilon(0.1));  // the corridor's density (plain: 1.56-2.05 of 2.35)
+  }
+  REQUIRE(middle > 20);
+  // In the open, far from any wall, the share is exactly 1 and the density unchanged.
+  Geometry open;
+  open.lo = Vec2(-50, -50);
+  open.hi = Vec2(50, 50);
+  const WalkableLattice wide = walkable_lattice(open, 0.25);
+  const std::vector<Vec2> y = {Vec2(0.3, 0.1), Vec2(-1.2, 0.7)}, e = {Vec2(0.6, 0.8), Vec2(0, 0)};
+  for (double s : walkable_share_ahead(wide, y, e, 2.0, 2.5)) CHECK(s == 1.0);
+  // The share's adjoint against central differences near a corner (positions and headings, a
+  // focus that is not whole), and at a point with no heading.
+  geo.solids.push_back(Shape::circle(Vec2(4, 1.2), 0.5));
+  const WalkableLattice corner = walkable_lattice(geo, 0.25);
+  const std::vector<Vec2> q = {Vec2(2.9, 0.9), Vec2(0.8, 2.0), Vec2(3.3, 1.9)};
+  const std::vector<Vec2> eq = {Vec2(0.8, 0.6), Vec2(-0.6, 0.8), Vec2(0, 0)};
+  const std::vector<double> weights = {1.0, -0.7, 0.4};
+  auto loss = [&](const std::vector<Vec2>& at, const std::vector<Vec2>& he) {
+    const std::vector<double> s = walkable_share_ahead(corner, at, he, 2.0, 2.5);
+    return weights[0] * s[0] + weights[1] * s[1] + weights[2] * s[2];
+  };
+  std::vector<Vec2> xb(q.size(), Vec2::Zero()), eb(q.size(), Vec2::Zero());
+  walkable_share_ahead_vjp(corner, q, eq, 2.0, 2.5, weights, xb, eb);
+  const double h = 1e-6;
+  for (size_t p = 0; p < q.size(); ++p)
+    for (int c = 0; c < 2; ++c) {
+      std::vector<Vec2> up = q, down = q;
+      up[p][c] += h;
+      down[p][c] -= h;
+      CHECK(xb[p][c] == Approx((loss(up, eq) - loss(down, eq)) / (2 * h)).margin(1e-6));
+      std::vector<Vec2> eu = eq, ed = eq;
+      eu[p][c] += h;
+      ed[p][c] -= h;
+      if (eq[p].squaredNorm() > 0) CHECK(eb[p][c] == Approx((loss(q, eu) - loss(q, ed)) / (2 * h)).margin(1e-6));
+    }
+  CHECK(xb[0].norm() > 0.01);  // near the post and the wall the share moves with the position
+}
+
 TEST_CASE("model version 2 starts a dense crowd compressed, version 1 at J = 1", "[units]") {
   const char* scene = R"({"format": "crowdmpm-scenario", "version": 1, "name": "dense",
     "domain": {"min": [0, 0], "max": [12, 12], "cell_size": 0.5}, "time": {"dt": 0.01, "duration": 1},

@@ -346,8 +346,7 @@ ModelGradient WindowGradient::run(Simulation& sim, int steps, const StateLossGra
     // headings and (with an opening speed) the velocities before the step make.
     if (material_density_law(P)) {
       heading_bar.assign(n, Vec2::Zero());
-      local_density_ahead_vjp(st.x, st.heading, P.density_speed_reach, P.density_speed_focus, density_bar, xb, heading_bar, &st.v, P.density_opening_speed, &vb,
-                              &out.params.density_opening_speed);
+      material_density_vjp(in, st.x, st.heading, st.v, density_bar, xb, heading_bar, vb, &out.params.density_opening_speed);
       heading_bar_later.swap(heading_bar);
     }
   }

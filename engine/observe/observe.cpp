@@ -97,9 +97,10 @@ std::unordered_map<long, double> free_speeds(const TrajectorySet& t, double spee
   return out;
 }
 
-std::unordered_map<long, double> free_speeds_by_law(const SpeedHistory& h, long last, const MaterialParams& P) {
+std::unordered_map<long, double> free_speeds_by_law(const SpeedHistory& h, long last, const MaterialParams& P,
+                                                    const WalkableLattice* walk) {
   std::unordered_map<long, double> out;
-  const std::vector<float>& rho = h.density_ahead(P.density_speed_reach, P.density_speed_focus);
+  const std::vector<float>& rho = h.density_ahead(P.density_speed_reach, P.density_speed_focus, walk);
   std::vector<double> v;
   TermPoint pt;
   for (const auto& [id, samples] : h.by_id) {
@@ -114,9 +115,9 @@ std::unordered_map<long, double> free_speeds_by_law(const SpeedHistory& h, long 
   return out;
 }
 
-const std::vector<float>& SpeedHistory::density_ahead(double reach, double focus) const {
+const std::vector<float>& SpeedHistory::density_ahead(double reach, double focus, const WalkableLattice* walk) const {
   std::lock_guard<std::mutex> lock(mutex_);
-  std::unique_ptr<std::vector<float>>& rho = cache_[{reach, focus}];
+  std::unique_ptr<std::vector<float>>& rho = cache_[{reach, focus, walk ? walk->fingerprint : 0}];
   if (rho) return *rho;
   auto d = std::make_unique<std::vector<float>>(at.size(), 0.0f);
   std::vector<Vec2> xs, hs;
@@ -124,7 +125,8 @@ const std::vector<float>& SpeedHistory::density_ahead(double reach, double focus
     const size_t b = frame_start[i], e = frame_start[i + 1];
     xs.assign(at.begin() + static_cast<long>(b), at.begin() + static_cast<long>(e));
     hs.assign(dir.begin() + static_cast<long>(b), dir.begin() + static_cast<long>(e));
-    const std::vector<double> r = local_density_ahead(xs, hs, reach, focus);
+    std::vector<double> r = local_density_ahead(xs, hs, reach, focus);
+    if (walk) per_walkable_area(*walk, xs, hs, reach, focus, r);
     for (size_t k = b; k < e; ++k) (*d)[k] = static_cast<float>(r[k - b]);
   }
   rho = std::move(d);
@@ -191,7 +193,7 @@ WindowSim start_window(const ScenarioDef& sc, const Model& model, const Observed
   // A model with a density-speed law reads each person's free speed under its own law.
   const std::unordered_map<long, double> law_free =
       o.desired_speed == DesiredSpeed::Free && material_density_law(model.params) && s.history
-          ? free_speeds_by_law(*s.history, s.frame, model.params)
+          ? free_speeds_by_law(*s.history, s.frame, model.params, sim.walkable())
           : std::unordered_map<long, double>();
   std::vector<AgentDef> defs;
   std::vector<size_t> placed;  // index in s of each def

@@ -7,6 +7,7 @@
 #include <string>
 #include <limits>
 #include <unordered_map>
+#include <tuple>
 #include <vector>
 
 #include "engine/io/trajectory.hpp"
@@ -32,11 +33,13 @@ class SpeedHistory {
   std::vector<Vec2> at, dir;                                 // every recorded point and its walking direction
   std::vector<size_t> frame_start;                           // points of one frame: [frame_start[i], frame_start[i + 1])
   // Persons/m^2 ahead of every recorded point (thread-safe; the reference stays valid).
-  const std::vector<float>& density_ahead(double reach, double focus) const;
+  // With a walkable lattice (the venue's, Simulation::walkable), per walkable area, as the
+  // material's law reads it (material_density).
+  const std::vector<float>& density_ahead(double reach, double focus, const WalkableLattice* walk = nullptr) const;
 
  private:
   mutable std::mutex mutex_;
-  mutable std::map<std::pair<double, double>, std::unique_ptr<std::vector<float>>> cache_;
+  mutable std::map<std::tuple<double, double, uint64_t>, std::unique_ptr<std::vector<float>>> cache_;
 };
 std::shared_ptr<const SpeedHistory> speed_history(const TrajectorySet& t, double speed_window);
 // Each person's free speed under a model's density-speed law (MaterialParams::density_speed_gamma
@@ -45,7 +48,8 @@ std::shared_ptr<const SpeedHistory> speed_history(const TrajectorySet& t, double
 // nothing of their free speed: tracking noise / f would), and at most kLawFreeSpeedCap.
 constexpr double kLawFactorFloor = 0.25;
 constexpr double kLawFreeSpeedCap = 2.2;  // m/s: Weidmann's free speeds N(1.34, 0.26) + 3.3 sd
-std::unordered_map<long, double> free_speeds_by_law(const SpeedHistory& h, long last, const MaterialParams& P);
+std::unordered_map<long, double> free_speeds_by_law(const SpeedHistory& h, long last, const MaterialParams& P,
+                                                    const WalkableLattice* walk = nullptr);
 
 // The state of one recording window, ready to roll forward.
 struct ObservedState {

@@ -141,7 +141,33 @@ std::vector<double> terms_density(const StepInputs& in, const World& w) {
 std::vector<double> material_density(const StepInputs& in, const std::vector<Vec2>& x, const std::vector<Vec2>& heading,
                                      const std::vector<Vec2>& v) {
   const MaterialParams& P = in.model.params;
-  return material_density_law(P) ? local_density_ahead(x, heading, P.density_speed_reach, P.density_speed_focus, &v, P.density_opening_speed) : std::vector<double>();
+  if (!material_density_law(P)) return {};
+  std::vector<double> rho = local_density_ahead(x, heading, P.density_speed_reach, P.density_speed_focus, &v, P.density_opening_speed);
+  if (in.walkable) per_walkable_area(*in.walkable, x, heading, P.density_speed_reach, P.density_speed_focus, rho);
+  return rho;
+}
+
+void material_density_vjp(const StepInputs& in, const std::vector<Vec2>& x, const std::vector<Vec2>& heading,
+                          const std::vector<Vec2>& v, const std::vector<double>& density_bar, std::vector<Vec2>& x_bar,
+                          std::vector<Vec2>& heading_bar, std::vector<Vec2>& v_bar, double* opening_bar) {
+  const MaterialParams& P = in.model.params;
+  if (!material_density_law(P)) return;
+  const double R = P.density_speed_reach, k = P.density_speed_focus;
+  if (!in.walkable) {
+    local_density_ahead_vjp(x, heading, R, k, density_bar, x_bar, heading_bar, &v, P.density_opening_speed, &v_bar, opening_bar);
+    return;
+  }
+  // rho / s' with s' = max(s, kMinWalkableShare): d = drho / s' - rho ds / s'^2 where s' = s.
+  const std::vector<double> rho = local_density_ahead(x, heading, R, k, &v, P.density_opening_speed);
+  const std::vector<double> share = walkable_share_ahead(*in.walkable, x, heading, R, k);
+  std::vector<double> rho_bar(rho.size()), share_bar(rho.size(), 0.0);
+  for (size_t p = 0; p < rho.size(); ++p) {
+    const double s = std::max(share[p], kMinWalkableShare);
+    rho_bar[p] = density_bar[p] / s;
+    if (share[p] > kMinWalkableShare) share_bar[p] = -density_bar[p] * rho[p] / (s * s);
+  }
+  local_density_ahead_vjp(x, heading, R, k, rho_bar, x_bar, heading_bar, &v, P.density_opening_speed, &v_bar, opening_bar);
+  walkable_share_ahead_vjp(*in.walkable, x, heading, R, k, share_bar, x_bar, heading_bar);
 }
 
 namespace {

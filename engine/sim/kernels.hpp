@@ -106,6 +106,10 @@ struct StepInputs {
   const std::vector<Term>& terms;  // the venue's force terms (scenario "forces")
   double dt;
   double time;  // s, at the start of the step
+  // The venue's walkable lattice at the material law's reach / 8 (Simulation keeps it while the
+  // model has a density-speed law), through which the law reads a density per walkable area;
+  // null: the density ahead as read over the whole disc.
+  const WalkableLattice* walkable = nullptr;
 };
 
 // phi(d) of the pair traction for contact distance theta1, comfort distance c, smallest gap eps.
@@ -130,9 +134,16 @@ TermPoint terms_point(const StepInputs& in, const World& w, size_t p, const Vec2
 // The local densities the scenario's terms read (empty when none reads them).
 std::vector<double> terms_density(const StepInputs& in, const World& w);
 // The densities ahead (local_density_ahead at positions x with the headings before the step) that
-// the material's density-speed law reads (empty when the model has none).
+// the material's density-speed law reads (empty when the model has none), each divided by the
+// kernel's walkable share there (walkable_share_ahead, at least kMinWalkableShare) when the
+// inputs carry the venue's walkable lattice.
 std::vector<double> material_density(const StepInputs& in, const std::vector<Vec2>& x, const std::vector<Vec2>& heading,
                                      const std::vector<Vec2>& v);
+// Its adjoint: given density_bar[p] = dL/d(material_density)_p, adds dL/dx to x_bar, dL/dheading
+// to heading_bar, dL/dv to v_bar and dL/d(density_opening_speed) to *opening_bar.
+void material_density_vjp(const StepInputs& in, const std::vector<Vec2>& x, const std::vector<Vec2>& heading,
+                          const std::vector<Vec2>& v, const std::vector<double>& density_bar, std::vector<Vec2>& x_bar,
+                          std::vector<Vec2>& heading_bar, std::vector<Vec2>& v_bar, double* opening_bar);
 // The material's own density-speed law (density_speed_gamma > 0; the "density_speed" term's
 // formula with the model's gamma and max density, at the density ahead of the person,
 // pt.density_ahead), raised by its floor phi (density_speed_floor) to phi + (1 - phi) f: the factor

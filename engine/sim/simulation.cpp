@@ -86,7 +86,17 @@ Simulation::Simulation(const ScenarioDef& scenario, const Model& model, int thre
   spawn_sources();
   if (model_.density_referenced()) reference_volumes(world_, 0, model_.params.rest_density);
   batch_start_ = world_.size();
+  update_walkable();
   prepare_derived();
+}
+
+void Simulation::update_walkable() {
+  if (!material_density_law(model_.params)) {
+    walkable_ = WalkableLattice();
+    return;
+  }
+  const double h = model_.params.density_speed_reach / 8;
+  if (walkable_.empty() || walkable_.h != h) walkable_ = walkable_lattice(scenario_.geo, h);
 }
 
 void Simulation::set_model(const Model& m) {
@@ -109,6 +119,7 @@ void Simulation::set_model(const Model& m) {
                     ": " + format_number(world_.comfort[p]) + " m)");
   model_ = m;
   init_neighbours(neighbour_reach());
+  update_walkable();
   prepare_derived();
 }
 

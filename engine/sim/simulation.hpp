@@ -104,7 +104,12 @@ class Simulation {
   // The behaviour of the scenario's group (or source) g, by index into groups.
   int behaviour_of_group(int g) const { return group_behaviour_.at(static_cast<size_t>(g)); }
   // The inputs the kernels see (for the adjoint passes); valid while the simulation lives.
-  StepInputs step_inputs() const { return StepInputs{model_, scenario_.geo, navs_, behaviours_, scenario_.terms, scenario_.dt, time()}; }
+  StepInputs step_inputs() const {
+    return StepInputs{model_, scenario_.geo, navs_, behaviours_, scenario_.terms, scenario_.dt, time(), walkable()};
+  }
+  // The venue's walkable lattice through which the model's density-speed law reads its density
+  // (spacing: the law's reach / 8), or null when the model has no such law.
+  const WalkableLattice* walkable() const { return walkable_.empty() ? nullptr : &walkable_; }
   const NeighbourGrid& neighbour_grid() const { return neighbours_; }
   int behaviour_for_target(const std::string& target);  // goal behaviour to an exit/goal id
   // Changes the simulated time at which finished() holds (the scenario's time.duration), s > 0.
@@ -142,6 +147,7 @@ class Simulation {
   AgentDef agent_template(const GroupDef& g, int group_index) const;
   AgentDef with_entry_heading(AgentDef d) const;  // the heading behaviour's direction at entry
   void check_agent(const AgentDef& def) const;     // throws Error naming what add_agent refuses
+  void update_walkable();     // (re)builds walkable_ for the model's density-speed law, or clears it
   void update_routes();       // at a step's start: recompute route_pace_ when due, then the routes
   void apply_route_pace(); // the goal navigation fields' costs from route_pace_
   const std::vector<double>& route_costs();  // the cost per navigation cell from route_pace_
@@ -153,6 +159,7 @@ class Simulation {
   Grid grid_;
   NeighbourGrid neighbours_;
   std::vector<NavField> navs_;
+  WalkableLattice walkable_;  // see walkable(); update_walkable keeps it to the model
   std::vector<std::string> nav_targets_;
   std::vector<char> nav_goal_;          // per navigation field: a goal's (route choice bends it)
   std::vector<double> route_pace_;   // per grid node, 0..1, at the last route update

@@ -4,6 +4,11 @@
 #include <cmath>
 #include <cstring>
 #include <numeric>
+#include <string>
+
+#include "engine/core/binary.hpp"
+#include "engine/core/error.hpp"
+#include "engine/core/json_reader.hpp"
 
 namespace crowdmpm {
 
@@ -190,6 +195,103 @@ void local_density_ahead_vjp(const std::vector<Vec2>& x, const std::vector<Vec2>
     }
     if (opening_bar) *opening_bar += g * W * dD_du;
   });
+}
+
+WalkableLattice walkable_lattice(const Geometry& geo, double h) {
+  if (!(h > 0) || !std::isfinite(h)) throw Error("walkable lattice spacing must be positive and finite, got " + format_number(h) + " m");
+  WalkableLattice walk;
+  const Vec2 ext = geo.hi - geo.lo;
+  if (!(ext.x() > 0 && ext.y() > 0)) return walk;
+  walk.lo = geo.lo;
+  walk.h = h;
+  walk.nx = static_cast<long>(std::ceil(ext.x() / h));
+  walk.ny = static_cast<long>(std::ceil(ext.y() / h));
+  walk.clearance.resize(static_cast<size_t>(walk.nx * walk.ny));
+  for (long j = 0; j < walk.ny; ++j)
+    for (long i = 0; i < walk.nx; ++i)
+      walk.clearance[static_cast<size_t>(j * walk.nx + i)] =
+          static_cast<float>(geo.sdf(walk.lo + h * Vec2(static_cast<double>(i) + 0.5, static_cast<double>(j) + 0.5)));
+  const double head[5] = {walk.lo.x(), walk.lo.y(), h, static_cast<double>(walk.nx), static_cast<double>(walk.ny)};
+  walk.fingerprint = fnv1a64(reinterpret_cast<const char*>(head), sizeof(head)) ^
+                     fnv1a64(reinterpret_cast<const char*>(walk.clearance.data()), walk.clearance.size() * sizeof(float));
+  return walk;
+}
+
+namespace {
+// Calls visit(y, walkable) for every lattice centre y within R of x (the lattice extended beyond
+// its cells, where nothing is walkable); returns false without visiting when the whole disc is
+// walkable (the centre nearest x is clear by more than R plus a cell's diagonal).
+template <class Visit>
+bool for_each_centre_within(const WalkableLattice& walk, const Vec2& x, double R, Visit&& visit) {
+  const double h = walk.h;
+  const Vec2 u = (x - walk.lo) / h;
+  const long ci = static_cast<long>(std::floor(u.x())), cj = static_cast<long>(std::floor(u.y()));
+  if (ci >= 0 && ci < walk.nx && cj >= 0 && cj < walk.ny && walk.clearance[static_cast<size_t>(cj * walk.nx + ci)] > R + 1.5 * h)
+    return false;
+  const double r = R / h;
+  const long i0 = static_cast<long>(std::ceil(u.x() - r - 0.5)), i1 = static_cast<long>(std::floor(u.x() + r - 0.5));
+  const long j0 = static_cast<long>(std::ceil(u.y() - r - 0.5)), j1 = static_cast<long>(std::floor(u.y() + r - 0.5));
+  for (long j = j0; j <= j1; ++j)
+    for (long i = i0; i <= i1; ++i) {
+      const Vec2 y = walk.lo + h * Vec2(static_cast<double>(i) + 0.5, static_cast<double>(j) + 0.5);
+      if ((y - x).squaredNorm() >= R * R) continue;
+      const bool in = i >= 0 && i < walk.nx && j >= 0 && j < walk.ny && walk.clearance[static_cast<size_t>(j * walk.nx + i)] > 0;
+      visit(y, in);
+    }
+  return true;
+}
+}  // namespace
+
+std::vector<double> walkable_share_ahead(const WalkableLattice& walk, const std::vector<Vec2>& x, const std::vector<Vec2>& heading,
+                                         double R, double focus) {
+  std::vector<double> share(x.size(), 1.0);
+  if (walk.empty()) return share;
+  const double Nk = focus_norm(focus);
+  for (size_t p = 0; p < x.size(); ++p) {
+    double s0 = 0, s1 = 0;
+    const bool near_wall = for_each_centre_within(walk, x[p], R, [&](const Vec2& y, bool in) {
+      const double W = ahead_weight(y - x[p], heading[p], R, focus, Nk, nullptr, nullptr);
+      s0 += W;
+      if (in) s1 += W;
+    });
+    if (near_wall && s0 > 0) share[p] = s1 / s0;
+  }
+  return share;
+}
+
+void per_walkable_area(const WalkableLattice& walk, const std::vector<Vec2>& x, const std::vector<Vec2>& heading, double R,
+                       double focus, std::vector<double>& rho) {
+  const std::vector<double> share = walkable_share_ahead(walk, x, heading, R, focus);
+  for (size_t p = 0; p < rho.size(); ++p) rho[p] /= std::max(share[p], kMinWalkableShare);
+}
+
+void walkable_share_ahead_vjp(const WalkableLattice& walk, const std::vector<Vec2>& x, const std::vector<Vec2>& heading,
+                              double R, double focus, const std::vector<double>& share_bar, std::vector<Vec2>& x_bar,
+                              std::vector<Vec2>& heading_bar) {
+  if (walk.empty()) return;
+  const double Nk = focus_norm(focus);
+  for (size_t p = 0; p < x.size(); ++p) {
+    if (share_bar[p] == 0) continue;
+    // s = S1 / S0: ds = (dS1 - s dS0) / S0, each centre's weight W(y - x_p, e_p).
+    double s0 = 0, s1 = 0;
+    for_each_centre_within(walk, x[p], R, [&](const Vec2& y, bool in) {
+      const double W = ahead_weight(y - x[p], heading[p], R, focus, Nk, nullptr, nullptr);
+      s0 += W;
+      if (in) s1 += W;
+    });
+    if (!(s0 > 0)) continue;
+    const double s = s1 / s0, g = share_bar[p] / s0;
+    Vec2 gx = Vec2::Zero(), ge = Vec2::Zero();
+    for_each_centre_within(walk, x[p], R, [&](const Vec2& y, bool in) {
+      Vec2 dr = Vec2::Zero(), de = Vec2::Zero();
+      ahead_weight(y - x[p], heading[p], R, focus, Nk, &dr, &de);
+      const double c = (in ? 1.0 : 0.0) - s;
+      gx -= c * dr;  // r = y - x_p
+      ge += c * de;
+    });
+    x_bar[p] += g * gx;
+    heading_bar[p] += g * ge;
+  }
 }
 
 void reference_volumes(World& w, size_t first, double rest_density) {

@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "engine/core/vec.hpp"
+#include "engine/geometry/geometry.hpp"
 
 namespace crowdmpm {
 
@@ -86,6 +87,39 @@ void local_density_ahead_vjp(const std::vector<Vec2>& x, const std::vector<Vec2>
                              const std::vector<double>& rho_bar, std::vector<Vec2>& x_bar, std::vector<Vec2>& heading_bar,
                              const std::vector<Vec2>* v = nullptr, double opening = 0, std::vector<Vec2>* v_bar = nullptr,
                              double* opening_bar = nullptr);
+
+// The walkable part of a venue on a square lattice of spacing h (cell centres lo + h (i + 1/2,
+// j + 1/2), row-major): the venue's signed distance at each centre (walkable where positive;
+// outside the lattice, which covers the domain, nothing is walkable), and a fingerprint of the
+// lattice (equal lattices, equal fingerprints) for caches of what is read through it.
+struct WalkableLattice {
+  Vec2 lo = Vec2::Zero();
+  double h = 0;
+  long nx = 0, ny = 0;
+  std::vector<float> clearance;  // m
+  uint64_t fingerprint = 0;
+  bool empty() const { return nx == 0 || ny == 0; }
+};
+WalkableLattice walkable_lattice(const Geometry& geo, double h);
+// The walkable share of the density-ahead kernel of reach R and focus k at each point (heading
+// as in local_density_ahead): s_p = sum_c chi_c W(y_c - x_p) / sum_c W(y_c - x_p) over the
+// lattice's centres y_c within R (chi_c = 1 where walkable), 1 where the whole disc is walkable.
+// The density ahead divided by it is a density per walkable area: a corridor narrower than the
+// disc reads its density, not a part of it, and the space behind a wall is not taken for empty.
+std::vector<double> walkable_share_ahead(const WalkableLattice& walk, const std::vector<Vec2>& x, const std::vector<Vec2>& heading,
+                                         double R, double focus);
+// Its adjoint: given share_bar[p] = dL/ds_p, adds dL/dx to x_bar and dL/dheading to heading_bar
+// (exact: the lattice is fixed in space and every weight vanishes at the disc's edge).
+void walkable_share_ahead_vjp(const WalkableLattice& walk, const std::vector<Vec2>& x, const std::vector<Vec2>& heading,
+                              double R, double focus, const std::vector<double>& share_bar, std::vector<Vec2>& x_bar,
+                              std::vector<Vec2>& heading_bar);
+// The least walkable share a density ahead is divided by (a person facing a wall reads at most
+// 1 / kMinWalkableShare times the people in the disc's walkable part).
+constexpr double kMinWalkableShare = 0.25;
+// Densities ahead rho (local_density_ahead at x, heading) made per walkable area: each divided by
+// max(walkable share, kMinWalkableShare).
+void per_walkable_area(const WalkableLattice& walk, const std::vector<Vec2>& x, const std::vector<Vec2>& heading, double R,
+                       double focus, std::vector<double>& rho);
 
 // Model v2's reference volumes: J = clamp(rho0 / rho, j_min, 1) for the agents [first, size())
 // with rho their local_density over kDensityRadius, so that a crowd entering denser than rest
