@@ -394,6 +394,13 @@ double parse_double(const std::string& name, const std::string& v, double lo, do
   return d;
 }
 
+// A whole number in [lo, hi] ("3", "3.0", "1e2"; "2.5" and "abc" are usage errors naming the option).
+long parse_whole(const std::string& name, const std::string& v, double lo, double hi, const char* what) {
+  const double d = parse_double(name, v, lo, hi, what);
+  if (d != std::floor(d)) usage_error(name + " must be " + what + " (a whole number), got '" + v + "'");
+  return static_cast<long>(d);
+}
+
 [[noreturn]] void usage_error(const std::string& msg) {
   std::fprintf(stderr, "crowdmpm: %s\n(run 'crowdmpm help' for usage)\n", msg.c_str());
   std::exit(2);
@@ -410,11 +417,7 @@ Args parse_args(int argc, char** argv, int first) {
     if (s == "--help" || s == "-h") a.help = true;
     else if (s == "--out") a.out = value("--out");
     else if (s == "--spec") a.spec = value("--spec");
-    else if (s == "--frame-step") {
-      const double n = parse_double(s, value("--frame-step"), 1, 1000, "a whole number of frames in [1, 1000]");
-      if (n != std::floor(n)) usage_error("--frame-step must be a whole number of frames, got " + format_number(n));
-      a.frame_step = static_cast<long>(n);
-    }
+    else if (s == "--frame-step") a.frame_step = parse_whole(s, value("--frame-step"), 1, 1000, "a number of frames in [1, 1000]");
     else if (s == "--framerate") a.framerate = parse_double(s, value("--framerate"), 0.01, 10000, "frames per second in [0.01, 10000]");
     else if (s == "--model") {
       a.models.push_back(value("--model"));
@@ -497,16 +500,16 @@ Args parse_args(int argc, char** argv, int first) {
       a.video_learn.train_share = parse_double(s, value(s.c_str()), 0.05, 0.95, "a share in [0.05, 0.95]");
       a.train_share_given = true;
     }
-    else if (s == "--ensemble") a.video_learn.ensemble = static_cast<int>(parse_double(s, value(s.c_str()), 1, 64, "1..64 rollouts"));
-    else if (s == "--horizons") a.video_learn.horizons = static_cast<int>(parse_double(s, value(s.c_str()), 1, 100, "1..100"));
+    else if (s == "--ensemble") a.video_learn.ensemble = static_cast<int>(parse_whole(s, value(s.c_str()), 1, 64, "1..64 rollouts"));
+    else if (s == "--horizons") a.video_learn.horizons = static_cast<int>(parse_whole(s, value(s.c_str()), 1, 100, "1..100"));
     else if (s == "--calibration") a.video.calibration = value("--calibration");
     else if (s == "--scale") a.video.scale = parse_double(s, value("--scale"), 1e-6, 100, "metres per pixel in (0, 100]");
     else if (s == "--cell") a.video.cell = parse_double(s, value("--cell"), 0.05, 10, "a grid spacing in [0.05, 10] m");
     else if (s == "--method") a.video.flow.method = flow_method(value("--method"));
-    else if (s == "--dis-preset") a.video.flow.dis_preset = static_cast<int>(parse_double(s, value("--dis-preset"), 0, 2, "0, 1 or 2"));
+    else if (s == "--dis-preset") a.video.flow.dis_preset = static_cast<int>(parse_whole(s, value("--dis-preset"), 0, 2, "0, 1 or 2"));
     else if (s == "--smoothing") a.video.flow.smoothing = parse_double(s, value("--smoothing"), 0, 0.99, "in [0, 0.99]");
-    else if (s == "--first") a.video.video.first = static_cast<long>(parse_double(s, value("--first"), 0, 1e9, "a frame number >= 0"));
-    else if (s == "--frames") a.video.video.count = static_cast<long>(parse_double(s, value("--frames"), 2, 1e9, "a number of frames >= 2"));
+    else if (s == "--first") a.video.video.first = parse_whole(s, value("--first"), 0, 1e9, "a frame number >= 0");
+    else if (s == "--frames") a.video.video.count = parse_whole(s, value("--frames"), 2, 1e9, "a number of frames >= 2");
     else if (s == "--fps") {
       const double f = parse_double(s, value("--fps"), 0.1, 999, "frames per second in [0.1, 999]");
       a.video.video.fps = f;
@@ -523,7 +526,7 @@ Args parse_args(int argc, char** argv, int first) {
       }
       if (v.size() % 2 || v.size() < 6) usage_error("--roi needs at least three x,y pixel pairs, got " + std::to_string(v.size()) + " numbers");
       for (size_t k = 0; k < v.size(); k += 2) a.video.video.roi.emplace_back(v[k], v[k + 1]);
-    } else if (s == "--sample-stride") a.video.field.sample_stride = static_cast<int>(parse_double(s, value(s.c_str()), 1, 64, "1..64 pixels"));
+    } else if (s == "--sample-stride") a.video.field.sample_stride = static_cast<int>(parse_whole(s, value(s.c_str()), 1, 64, "1..64 pixels"));
     else if (s == "--min-speed") a.video.field.min_speed = parse_double(s, value(s.c_str()), 0, 10, "a speed in [0, 10] m/s");
     else if (s == "--glitch-ratio") {
       a.video.field.glitch_ratio = parse_double(s, value(s.c_str()), 0, 100, "0 (off) or a ratio in (1, 100)");

@@ -170,6 +170,13 @@ contains "diagnose unknown candidate" 'options.candidates[0]: unknown candidate 
 check "diagnose bad options" 2 "$cli" diagnose --scenario "$src/scenarios/bottleneck.json" --observed "$work/sim/trajectories.txt" \
   --out "$work/diag2" --options '{"cell": '
 contains "diagnose bad options" "--options must be a JSON object"
+# Whole-number options refuse a fraction instead of truncating it.
+check "predict ensemble not whole" 2 "$cli" predict --video "$work/none.mov" --ensemble 2.5
+contains "predict ensemble not whole" "--ensemble must be 1..64 rollouts (a whole number), got '2.5'"
+check "predict frames not whole" 2 "$cli" predict --video "$work/none.mov" --frames 10.5
+contains "predict frames not whole" "--frames must be a number of frames >= 2 (a whole number), got '10.5'"
+check "predict horizons in range" 2 "$cli" predict --video "$work/none.mov" --horizons 0
+contains "predict horizons in range" "--horizons must be 1..100, got '0'"
 check "diagnose option out of range" 1 "$cli" diagnose --scenario "$src/scenarios/bottleneck.json" --observed "$work/sim/trajectories.txt" \
   --out "$work/diag2" --options '{"cell": -1}'
 contains "diagnose option out of range" "options.cell"
