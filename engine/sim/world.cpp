@@ -251,19 +251,38 @@ bool for_each_centre_within(const WalkableLattice& walk, const Vec2& x, double R
 }
 }  // namespace
 
+namespace {
+// The kernel's weights over the lattice centres within R of x: S0 over every centre, S1 over the
+// walkable ones, and with derivatives, their gradients along x and the heading e.
+struct ShareSums {
+  double s0 = 0, s1 = 0;
+  Vec2 dx0 = Vec2::Zero(), dx1 = Vec2::Zero(), de0 = Vec2::Zero(), de1 = Vec2::Zero();
+};
+// False (sums untouched) when the whole disc is walkable.
+bool share_sums(const WalkableLattice& walk, const Vec2& x, const Vec2& e, double R, double focus, double Nk, bool derivatives,
+                ShareSums& out) {
+  return for_each_centre_within(walk, x, R, [&](const Vec2& y, bool in) {
+    Vec2 dr = Vec2::Zero(), de = Vec2::Zero();
+    const double W = ahead_weight(y - x, e, R, focus, Nk, derivatives ? &dr : nullptr, derivatives ? &de : nullptr);
+    out.s0 += W;
+    out.dx0 -= dr;  // r = y - x
+    out.de0 += de;
+    if (!in) return;
+    out.s1 += W;
+    out.dx1 -= dr;
+    out.de1 += de;
+  });
+}
+}  // namespace
+
 std::vector<double> walkable_share_ahead(const WalkableLattice& walk, const std::vector<Vec2>& x, const std::vector<Vec2>& heading,
                                          double R, double focus) {
   std::vector<double> share(x.size(), 1.0);
   if (walk.empty()) return share;
   const double Nk = focus_norm(focus);
   for (size_t p = 0; p < x.size(); ++p) {
-    double s0 = 0, s1 = 0;
-    const bool near_wall = for_each_centre_within(walk, x[p], R, [&](const Vec2& y, bool in) {
-      const double W = ahead_weight(y - x[p], heading[p], R, focus, Nk, nullptr, nullptr);
-      s0 += W;
-      if (in) s1 += W;
-    });
-    if (near_wall && s0 > 0) share[p] = s1 / s0;
+    ShareSums S;
+    if (share_sums(walk, x[p], heading[p], R, focus, Nk, false, S) && S.s0 > 0) share[p] = S.s1 / S.s0;
   }
   return share;
 }
@@ -280,26 +299,12 @@ void walkable_share_ahead_vjp(const WalkableLattice& walk, const std::vector<Vec
   if (walk.empty()) return;
   const double Nk = focus_norm(focus);
   for (size_t p = 0; p < x.size(); ++p) {
-    if (share_bar[p] == 0) continue;
-    // s = S1 / S0: ds = (dS1 - s dS0) / S0, each centre's weight W(y - x_p, e_p).
-    double s0 = 0, s1 = 0;
-    for_each_centre_within(walk, x[p], R, [&](const Vec2& y, bool in) {
-      const double W = ahead_weight(y - x[p], heading[p], R, focus, Nk, nullptr, nullptr);
-      s0 += W;
-      if (in) s1 += W;
-    });
-    if (!(s0 > 0)) continue;
-    const double s = s1 / s0, g = share_bar[p] / s0;
-    Vec2 gx = Vec2::Zero(), ge = Vec2::Zero();
-    for_each_centre_within(walk, x[p], R, [&](const Vec2& y, bool in) {
-      Vec2 dr = Vec2::Zero(), de = Vec2::Zero();
-      ahead_weight(y - x[p], heading[p], R, focus, Nk, &dr, &de);
-      const double c = (in ? 1.0 : 0.0) - s;
-      gx -= c * dr;  // r = y - x_p
-      ge += c * de;
-    });
-    x_bar[p] += g * gx;
-    heading_bar[p] += g * ge;
+    ShareSums S;
+    if (share_bar[p] == 0 || !share_sums(walk, x[p], heading[p], R, focus, Nk, true, S) || !(S.s0 > 0)) continue;
+    // s = S1 / S0: ds = (dS1 - s dS0) / S0.
+    const double s = S.s1 / S.s0, g = share_bar[p] / S.s0;
+    x_bar[p] += g * (S.dx1 - s * S.dx0);
+    heading_bar[p] += g * (S.de1 - s * S.de0);
   }
 }
 
