@@ -376,6 +376,58 @@ TEST_CASE("density per walkable area: a corridor narrower than the kernel reads 
   CHECK(xb[0].norm() > 0.01);  // near the post and the wall the share moves with the position
 }
 
+TEST_CASE("the density-speed law's floor: added to Weidmann's factor, or its smooth max with it, and the adjoint", "[units]") {
+  Model m = Model::default_model();
+  m.set("density_speed_gamma", 1.913);
+  m.set("density_speed_max", 5.4);
+  auto weidmann = [&](double rho) { return 1 - std::exp(-1.913 * std::log1p(std::exp(10 * (1 / rho - 1 / 5.4))) / 10); };
+  auto factor = [&](const MaterialParams& P, double rho) {
+    TermPoint pt;
+    pt.density_ahead = rho;
+    return material_density_factor(P, pt);
+  };
+  for (double rho : {0.5, 2.0, 3.5, 8.0}) CHECK(factor(m.params, rho) == Approx(weidmann(rho)).epsilon(1e-9));  // no floor
+  m.set("density_speed_floor", 0.45);
+  // density_speed_floor_max 0 (the default): phi + (1 - phi) f everywhere.
+  for (double rho : {0.5, 2.0, 8.0}) CHECK(factor(m.params, rho) == Approx(0.45 + 0.55 * weidmann(rho)).epsilon(1e-12));
+  // 1: a smooth max(f, phi), Weidmann's law where it asks for more than the floor.
+  m.set("density_speed_floor_max", 1);
+  CHECK(factor(m.params, 0.5) == Approx(weidmann(0.5)).epsilon(1e-5));  // far above the floor: the law itself
+  CHECK(factor(m.params, 1.5) - weidmann(1.5) > 0);  // 0.15 above it: within 0.003 (softplus(-3) / 20)
+  CHECK(factor(m.params, 1.5) - weidmann(1.5) < 0.003);
+  CHECK(factor(m.params, 8.0) == Approx(0.45).epsilon(1e-3));  // beyond rho_max: the floor
+  for (double rho : {2.0, 2.5, 3.0}) {  // around the crossing: a smooth max, at most ln 2 / 20 above both
+    const double f = factor(m.params, rho), w = weidmann(rho);
+    CHECK(f >= std::max(w, 0.45));
+    CHECK(f <= std::max(w, 0.45) + std::log(2.0) / kFloorSharpness + 1e-12);
+  }
+  // Between: the mix. The adjoint: dF/dphi, dF/dgamma, dF/drho_max and dF/drho against central
+  // differences, for each form.
+  Model mixed = m;
+  mixed.set("density_speed_floor_max", 0.5);
+  CHECK(factor(mixed.params, 2.5) == Approx(0.5 * (0.45 + 0.55 * weidmann(2.5)) + 0.5 * factor(m.params, 2.5)).epsilon(1e-12));
+  for (double form : {0.0, 0.5, 1.0}) {
+    m.set("density_speed_floor_max", form);
+    for (double rho : {1.0, 2.3, 2.6, 4.0, 7.0}) {
+      MaterialParams grad = zero_params();
+      TermPoint pt;
+      pt.density_ahead = rho;
+      const double d_rho = material_density_factor_vjp(m.params, pt, 1.0, grad);
+      auto diff = [&](const char* name, double value) {
+        const double h = 1e-6;
+        Model up = m, down = m;
+        up.set(name, value + h);
+        down.set(name, value - h);
+        return (factor(up.params, rho) - factor(down.params, rho)) / (2 * h);
+      };
+      CHECK(grad.density_speed_floor == Approx(diff("density_speed_floor", 0.45)).margin(1e-6));
+      CHECK(grad.density_speed_gamma == Approx(diff("density_speed_gamma", 1.913)).margin(1e-6));
+      CHECK(grad.density_speed_max == Approx(diff("density_speed_max", 5.4)).margin(1e-6));
+      CHECK(d_rho == Approx((factor(m.params, rho + 1e-6) - factor(m.params, rho - 1e-6)) / 2e-6).margin(1e-6));
+    }
+  }
+}
+
 TEST_CASE("model version 2 starts a dense crowd compressed, version 1 at J = 1", "[units]") {
   const char* scene = R"({"format": "crowdmpm-scenario", "version": 1, "name": "dense",
     "domain": {"min": [0, 0], "max": [12, 12], "cell_size": 0.5}, "time": {"dt": 0.01, "duration": 1},

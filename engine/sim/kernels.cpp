@@ -181,12 +181,26 @@ double weidmann_factor(const MaterialParams& P, const TermPoint& pt) {
   density_speed_term()->eval(law, at, unused, f);
   return f;
 }
+
+// The floored factor F = (1 - m)(phi + (1 - phi) f) + m M, M = f + softplus(b (phi - f)) / b a
+// smooth max(f, phi), with its slopes in phi and f (optional). No floor: f itself.
+double floored_factor(double f, double phi, double m, double* d_phi, double* d_f) {
+  if (!(phi > 0)) {
+    if (d_phi) *d_phi = 0;
+    if (d_f) *d_f = 1;
+    return f;
+  }
+  const double z = kFloorSharpness * (phi - f), sigma = 1 / (1 + std::exp(-z));
+  const double smooth_max = f + (z > 30 ? z : std::log1p(std::exp(z))) / kFloorSharpness;
+  if (d_phi) *d_phi = (1 - m) * (1 - f) + m * sigma;
+  if (d_f) *d_f = (1 - m) * (1 - phi) + m * (1 - sigma);
+  return (1 - m) * (phi + (1 - phi) * f) + m * smooth_max;
+}
 }  // namespace
 
 double material_density_factor(const MaterialParams& P, const TermPoint& pt) {
   if (!material_density_law(P)) return 1;
-  const double phi = P.density_speed_floor;
-  return phi + (1 - phi) * weidmann_factor(P, pt);
+  return floored_factor(weidmann_factor(P, pt), P.density_speed_floor, P.density_speed_floor_max, nullptr, nullptr);
 }
 
 double material_density_factor_vjp(const MaterialParams& P, const TermPoint& pt, double f_bar, MaterialParams& grad) {
@@ -196,11 +210,12 @@ double material_density_factor_vjp(const MaterialParams& P, const TermPoint& pt,
   Vec2 x_bar = Vec2::Zero(), v_bar = Vec2::Zero();  // the law reads neither
   TermPoint at = pt;
   at.density = pt.density_ahead;
-  const double phi = P.density_speed_floor;
-  density_speed_term()->vjp(law, at, Vec2::Zero(), f_bar * (1 - phi), x_bar, v_bar, law_bar);
+  double dF_dphi = 0, dF_df = 1;
+  floored_factor(weidmann_factor(P, pt), P.density_speed_floor, P.density_speed_floor_max, &dF_dphi, &dF_df);
+  density_speed_term()->vjp(law, at, Vec2::Zero(), f_bar * dF_df, x_bar, v_bar, law_bar);
   grad.density_speed_gamma += law_bar[0];
   grad.density_speed_max += law_bar[1];
-  grad.density_speed_floor += f_bar * (1 - weidmann_factor(P, pt));
+  grad.density_speed_floor += f_bar * dF_dphi;
   // df/drho of the same law, a smooth function of one variable: central differences (DESIGN.md
   // section 4 allows local derivatives of pointwise functions).
   const double h = 1e-6 * std::max(pt.density_ahead, 1.0);

@@ -146,11 +146,13 @@ void material_density_vjp(const StepInputs& in, const std::vector<Vec2>& x, cons
                           std::vector<Vec2>& heading_bar, std::vector<Vec2>& v_bar, double* opening_bar);
 // The material's own density-speed law (density_speed_gamma > 0; the "density_speed" term's
 // formula with the model's gamma and max density, at the density ahead of the person,
-// pt.density_ahead), raised by its floor phi (density_speed_floor) to phi + (1 - phi) f: the factor
+// pt.density_ahead), raised by its floor phi (density_speed_floor) to (1 - m)(phi + (1 - phi) f) +
+// m M(f, phi), M a smooth max of sharpness kFloorSharpness, m = density_speed_floor_max (model.hpp): the factor
 // on the free speed at pt (1 when off), and, given dL/df, adds dL/d(density_speed_gamma),
 // dL/d(density_speed_max) and dL/d(density_speed_floor) to grad and returns dL/d(pt.density_ahead)
 // (which local_density_ahead_vjp, world.hpp, takes on to the positions and headings).
 inline bool material_density_law(const MaterialParams& P) { return P.density_speed_gamma > 0; }
+constexpr double kFloorSharpness = 20;  // b of the floor's smooth max: f + ln(1 + e^(b (phi - f))) / b
 double material_density_factor(const MaterialParams& P, const TermPoint& pt);
 double material_density_factor_vjp(const MaterialParams& P, const TermPoint& pt, double f_bar, MaterialParams& grad);
 // Headway speed adaptation (model parameter time_gap T > 0; after Tordeux, Chraibi & Seyfried

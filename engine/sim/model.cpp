@@ -35,6 +35,8 @@ const std::vector<ParamInfo>& param_table() {
       {"density_speed_max", &MaterialParams::density_speed_max, 0.5, 12, "persons/m^2", kContinuum, false},
       {"density_opening_speed", &MaterialParams::density_opening_speed, 0, 5, "m/s", kContinuum, false},
       {"density_speed_floor", &MaterialParams::density_speed_floor, 0, 0.9, "1", kContinuum, false},
+      // How the floor combines with Weidmann's factor (added or a max): set by hand, fixed in training.
+      {"density_speed_floor_max", &MaterialParams::density_speed_floor_max, 0, 1, "1", kFixed, false},
       // The density ahead's kernel: set by hand (no adjoint with respect to its shape), fixed in training.
       {"density_speed_reach", &MaterialParams::density_speed_reach, 0.5, 5, "m", kFixed, false},
       {"density_speed_focus", &MaterialParams::density_speed_focus, 1, 8, "1", kFixed, false},

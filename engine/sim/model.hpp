@@ -41,10 +41,14 @@ struct MaterialParams {
   double density_speed_gamma = 0;  // persons/m^2 (Weidmann: 1.913)
   double density_speed_max = 5.4;  // persons/m^2: where people stop
   double density_speed_reach = 1;  // m: R, how far ahead the density is read
-  // The law's floor phi: the factor is phi + (1 - phi) f, so that people in a dense crowd still
-  // want to move (and press on those ahead) at phi times their free speed; the headway and
-  // contact hold them where there is no room. 0: off (Weidmann's law down to standstill).
+  // The law's floor phi: people in a dense crowd still want to move (and press on those ahead)
+  // at phi times their free speed; the headway and contact hold them where there is no room.
+  // The factor is (1 - m) (phi + (1 - phi) f) + m M(f, phi), M(f, phi) = f + ln(1 + e^(b (phi -
+  // f))) / b with b = 20 a smooth max(f, phi), m = density_speed_floor_max: 0 the floor adds to
+  // Weidmann's factor everywhere, 1 it only raises it where it falls below phi. phi 0: off
+  // (Weidmann's law down to standstill).
   double density_speed_floor = 0;
+  double density_speed_floor_max = 0;  // m in [0, 1]
   double density_speed_focus = 1;  // k >= 1: neighbours weighted by (1 + cos)^k (1: the half-plane ahead; 4: a cone of ~50 degrees)
   // The gap that opens: a neighbour ahead walking away from the person, at s = (v_q - v_p).e_p > 0,
   // counts in that density with the weight exp(-s / u), u this speed (0: off, everyone counts in
