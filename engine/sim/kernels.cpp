@@ -190,11 +190,20 @@ double floored_factor(double f, double phi, double m, double* d_phi, double* d_f
     if (d_f) *d_f = 1;
     return f;
   }
-  const double z = kFloorSharpness * (phi - f), sigma = 1 / (1 + std::exp(-z));
+  const double added = phi + (1 - phi) * f;
+  if (!(m > 0)) {  // the added floor alone (the default): no smooth max to evaluate
+    if (d_phi) *d_phi = 1 - f;
+    if (d_f) *d_f = 1 - phi;
+    return added;
+  }
+  const double z = kFloorSharpness * (phi - f);
   const double smooth_max = f + (z > 30 ? z : std::log1p(std::exp(z))) / kFloorSharpness;
-  if (d_phi) *d_phi = (1 - m) * (1 - f) + m * sigma;
-  if (d_f) *d_f = (1 - m) * (1 - phi) + m * (1 - sigma);
-  return (1 - m) * (phi + (1 - phi) * f) + m * smooth_max;
+  if (d_phi || d_f) {
+    const double sigma = 1 / (1 + std::exp(-z));
+    if (d_phi) *d_phi = (1 - m) * (1 - f) + m * sigma;
+    if (d_f) *d_f = (1 - m) * (1 - phi) + m * (1 - sigma);
+  }
+  return (1 - m) * added + m * smooth_max;
 }
 }  // namespace
 
