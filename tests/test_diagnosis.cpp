@@ -147,3 +147,16 @@ TEST_CASE("diagnosis requests name what is wrong", "[diagnosis]") {
   fails_with({{"scenario", belief}}, "trajectories");
   fails_with({{"scenario", belief}, {"trajectories", rec}}, "too short to diagnose");
 }
+
+TEST_CASE("the selection's effective sample size counts the disjoint windows each person spans", "[diagnosis]") {
+  // One person in one window counts once, whatever the overlap.
+  CHECK(effective_sample_size({1}, 1, 3) == Approx(1));
+  // Seven 3 s windows every 1 s span 9 s: three disjoint windows.
+  CHECK(effective_sample_size({7}, 1, 3) == Approx(3));
+  // Windows that do not overlap are independent: each counts.
+  CHECK(effective_sample_size({7}, 3, 3) == Approx(7));
+  CHECK(effective_sample_size({7}, 5, 3) == Approx(7));
+  // People add up; a count below one is one window.
+  CHECK(effective_sample_size({1, 4, 0}, 1, 3) == Approx(1 + 2 + 1));
+  CHECK(effective_sample_size({}, 1, 3) == 0);
+}

@@ -44,6 +44,12 @@ struct DiagnoseOptions {
 // The candidate types diagnosis tries, by their report names (drift, attractor, ...).
 const std::vector<std::string>& diagnosis_candidates();
 
+// The effective sample size of the selection's information criterion: one person's errors over
+// overlapping held-out windows are not independent, so a person compared in W windows of
+// `window` s started every `stride` s counts as the 1 + (W - 1) min(stride / window, 1) disjoint
+// windows their time spans. `windows`: W of each person compared (each at least 1).
+double effective_sample_size(const std::vector<long>& windows, double stride, double window);
+
 struct Region {
   Vec2 center = Vec2::Zero();
   double radius = 0;
