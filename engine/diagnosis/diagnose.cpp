@@ -325,8 +325,15 @@ std::pair<Vec2, double> influence(const Term& t) {
 std::string implausible(const Term& t, const Geometry& geo) {
   if (report_type(t.law) != "obstacle") return {};
   const Vec2 c(t.params[0], t.params[1]);
-  if (!(geo.sdf(c) > 0)) return "its centre " + point(c) + " lies inside a known solid or outside the domain";
-  if (t.params[2] < 0.1) return "its radius " + num(t.params[2]) + " m is below 0.1 m";
+  const double r = t.params[2];
+  if (r < 0.1) return "its radius " + num(r) + " m is below 0.1 m";
+  if (!(c.x() >= geo.lo.x() && c.x() <= geo.hi.x() && c.y() >= geo.lo.y() && c.y() <= geo.hi.y()))
+    return "its centre " + point(c) + " lies outside the domain";
+  // A centre inside a known solid is that solid reaching further out (a constriction, a wall's
+  // protrusion) when the disc reaches at least 0.1 m into the walkable space.
+  const double s = geo.sdf(c);
+  if (s <= 0 && r + s < 0.1)
+    return "it lies inside a known solid (reaches " + num(std::max(r + s, 0.0), 2) + " m out of it, below 0.1 m)";
   return {};
 }
 
