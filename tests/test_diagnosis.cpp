@@ -143,6 +143,14 @@ TEST_CASE("diagnosis requests name what is wrong", "[diagnosis]") {
   fails_with({{"scenario", belief}, {"trajectories", rec}, {"options", {{"candidates", {"ghost"}}}}}, "ghost");
   fails_with({{"scenario", belief}, {"trajectories", rec}, {"options", {{"train_share", 2}}}}, "train_share");
   fails_with({{"scenario", belief}, {"trajectories", rec}, {"options", {{"params", {"nonsense"}}}}}, "nonsense");
+  fails_with({{"scenario", belief}, {"trajectories", rec}, {"options", {{"optimizer", "newton"}}}}, "optimizer");
+  fails_with({{"scenario", belief}, {"trajectories", rec}, {"options", {{"baseline_optimizer", "sgd"}}}}, "baseline_optimizer");
+  {
+    const DiagnoseJob job = parse_diagnose_job(
+        {{"scenario", belief}, {"trajectories", rec}, {"options", {{"baseline_optimizer", "lbfgs"}, {"optimizer", "adam"}}}});
+    CHECK(job.options.baseline_lbfgs);
+    CHECK_FALSE(job.options.candidates_lbfgs);
+  }
   fails_with({{"scenario", belief}, {"trajectories", (dir / "missing.txt").string()}}, "missing.txt");
   fails_with({{"scenario", belief}}, "trajectories");
   fails_with({{"scenario", belief}, {"trajectories", rec}}, "too short to diagnose");

@@ -100,7 +100,9 @@ int main(int argc, char** argv) {
                               {"options", options}};
         const auto t0 = std::chrono::steady_clock::now();
         const DiagnoseJob job = parse_diagnose_job(request);
-        const DiagnosisResult r = run_diagnosis(job);
+        // Each case's progress (fits, fitted parameters, every candidate's comparison) in its folder.
+        std::ofstream log((dir / "progress.log").string());
+        const DiagnosisResult r = run_diagnosis(job, [&log](const std::string& line) { log << line << "\n" << std::flush; });
         write_diagnosis(job, r, dir.string());
         Row row;
         row.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

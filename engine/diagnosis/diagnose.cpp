@@ -347,12 +347,14 @@ struct FitResult {
   std::string error;
 };
 FitResult fit(const ScenarioDef& scenario, const std::vector<Term>& terms, const Model& start, const Split& sp,
-              const DiagnoseOptions& d) {
+              const DiagnoseOptions& d, bool lbfgs) {
   FitResult f;
   ScenarioDef s = scenario;
   s.terms = terms;
+  TrainOptions o = fit_options(d);
+  if (lbfgs) o.optimizer = TrainOptions::Optimizer::Lbfgs;
   try {
-    const TrainResult r = train_on_windows({s}, sp.fit, sp.fit_validation, start, fit_options(d));
+    const TrainResult r = train_on_windows({s}, sp.fit, sp.fit_validation, start, o);
     f.model = r.model;
     f.terms = r.terms.empty() ? terms : r.terms[0];
     f.ok = true;
@@ -360,6 +362,13 @@ FitResult fit(const ScenarioDef& scenario, const std::vector<Term>& terms, const
     f.error = e.what();
   }
   return f;
+}
+
+// "; v0_scale 0.85, tau 0.56" for progress lines: the fitted values of the parameters a fit learns.
+std::string values_of(const Model& m, const std::vector<std::string>& params) {
+  std::string s;
+  for (const auto& p : params) s += (s.empty() ? "; " : ", ") + p + " " + num(m.get(p), 3);
+  return s;
 }
 
 ScenarioDef with_terms(const ScenarioDef& s, const std::vector<Term>& terms) {
@@ -438,7 +447,7 @@ DiagnoseJob parse_diagnose_job(const json& request, const std::string& base_dir)
     op->require_object();
     op->allow_only({"train_share", "window", "stride", "horizon", "residual_stride", "cell", "time_bin", "z_threshold", "source_margin",
                     "null_replicates", "alpha", "max_terms", "min_gain", "min_gain_z", "candidates", "params",
-                    "iterations", "learning_rate", "threads", "seed", "desired_speed"});
+                    "iterations", "learning_rate", "threads", "seed", "desired_speed", "baseline_optimizer", "optimizer"});
     o.train_share = op->in_range("train_share", 0.2, 0.9, o.train_share);
     o.window = op->in_range("window", 0.2, 30, o.window);
     o.stride = op->in_range("stride", 0.05, 30, o.stride);
@@ -455,6 +464,8 @@ DiagnoseJob parse_diagnose_job(const json& request, const std::string& base_dir)
     o.min_gain_z = op->in_range("min_gain_z", 0, 100, o.min_gain_z);
     o.iterations = static_cast<int>(op->in_range("iterations", 1, 10000, o.iterations));
     o.learning_rate = op->in_range("learning_rate", 1e-6, 10, o.learning_rate);
+    o.baseline_lbfgs = op->one_of("baseline_optimizer", {"adam", "lbfgs"}, std::string(o.baseline_lbfgs ? "lbfgs" : "adam")) == "lbfgs";
+    o.candidates_lbfgs = op->one_of("optimizer", {"adam", "lbfgs"}, std::string(o.candidates_lbfgs ? "lbfgs" : "adam")) == "lbfgs";
     o.threads = static_cast<int>(op->in_range("threads", 1, 256, o.threads));
     o.residual.threads = o.threads;
     o.seed = static_cast<uint64_t>(op->in_range("seed", 0, 9e15, static_cast<double>(o.seed)));
@@ -512,7 +523,7 @@ DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& pr
   Model model = job.model;
   std::vector<Term> terms = job.scenario.terms;
   if (!d.params.empty()) {
-    const FitResult b = fit(job.scenario, terms, model, sp, d);
+    const FitResult b = fit(job.scenario, terms, model, sp, d, d.baseline_lbfgs);
     if (!b.ok) throw Error("diagnosis: the baseline could not be fitted: " + b.error);
     model = b.model;
     terms = b.terms;
@@ -527,7 +538,7 @@ DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& pr
   const std::vector<WindowErrors> baseline_err = rollout_errors(with_terms(job.scenario, terms), model, sp.heldout, ds, d.threads);
   std::vector<WindowErrors> base_err = baseline_err;
   res.heldout_before = stats_of(base_err, sp.heldout, everyone).rms;
-  say("baseline fitted: held-out error " + num(res.heldout_before, 3) + " m");
+  say("baseline fitted: held-out error " + num(res.heldout_before, 3) + " m" + values_of(model, d.params));
 
   size_t after_terms = 0;  // accepted terms residual_after was made with (0: none made)
   for (int round = 0; round < std::max(1, d.max_terms); ++round) {
@@ -552,9 +563,13 @@ DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& pr
     // new term, is the second reference: a candidate is compared with whichever of the two
     // predicts the people it is judged on better.
     std::vector<WindowErrors> refit_err;
+    Model refit_model = model;
     {
-      const FitResult again = fit(job.scenario, terms, model, sp, d);
-      if (again.ok) refit_err = rollout_errors(with_terms(job.scenario, again.terms), again.model, sp.heldout, ds, d.threads);
+      const FitResult again = fit(job.scenario, terms, model, sp, d, d.candidates_lbfgs);
+      if (again.ok) {
+        refit_err = rollout_errors(with_terms(job.scenario, again.terms), again.model, sp.heldout, ds, d.threads);
+        refit_model = again.model;
+      }
     }
     const auto reference = [&](const Membership& m) {
       ErrorStats a = stats_of(base_err, sp.heldout, m);
@@ -564,7 +579,7 @@ DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& pr
     };
     const ErrorStats base_global = reference(everyone);
     say("  baseline refitted alone: held-out error " + num(base_global.rms, 3) + " m (was " +
-        num(stats_of(base_err, sp.heldout, everyone).rms, 3) + " m)");
+        num(stats_of(base_err, sp.heldout, everyone).rms, 3) + " m)" + values_of(refit_model, d.params));
     std::optional<size_t> best;
     std::vector<WindowErrors> best_err;
     FitResult best_fit;
@@ -585,7 +600,7 @@ DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& pr
       std::vector<Term> trial = terms;
       trial.push_back(cand);
       say("  fitting " + report_type(cand.law) + (c ? " at " + point(c->center) : std::string(" (whole venue)")));
-      FitResult f = fit(job.scenario, trial, model, sp, d);
+      FitResult f = fit(job.scenario, trial, model, sp, d, d.candidates_lbfgs);
       if (!f.ok) {
         h.term = cand;
         h.why = "fit failed: " + f.error;
@@ -621,7 +636,7 @@ DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& pr
       else if (!(global_change <= 0.02)) why = "held-out error of everyone rises by " + num(100 * global_change, 1) + "%";
       h.why = why.empty() ? "held-out gain " + num(100 * cmp.gain, 1) + "% (" + num(cmp.z, 1) + " standard errors)" : why;
       const bool passes = why.empty();
-      say("    " + report_type(cand.law) + ": region " + num(base_region.rms, 3) + " -> " + num(region.rms, 3) + " m, " + h.why);
+      say("    " + report_type(cand.law) + ": region " + num(base_region.rms, 3) + " -> " + num(region.rms, 3) + " m, " + h.why + values_of(f.model, d.params));
       res.hypotheses.push_back(h);
       if (passes && (!best || h.heldout_error_global < res.hypotheses[*best].heldout_error_global)) {
         best = res.hypotheses.size() - 1;

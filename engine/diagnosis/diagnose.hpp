@@ -37,6 +37,11 @@ struct DiagnoseOptions {
   bool params_given = false;
   int iterations = 60;
   double learning_rate = 0.05;
+  // How the baseline's parameters are fitted ("baseline_optimizer") and how every candidate term
+  // and the round's refitted baseline are ("optimizer"): "adam" (minibatches of 4 windows, the
+  // default) or "lbfgs" (full batch, deterministic; on the suite's room several times slower).
+  bool baseline_lbfgs = false;
+  bool candidates_lbfgs = false;
   int threads = 1;
   uint64_t seed = 1;
 };
@@ -92,7 +97,8 @@ struct DiagnosisResult {
 //    "options": {"train_share", "window", "stride", "horizon", "residual_stride", "cell",
 //                "time_bin", "z_threshold", "null_replicates", "alpha", "max_terms",
 //                "min_gain", "min_gain_z", "candidates", "params", "iterations",
-//                "learning_rate", "threads", "seed"}}
+//                "learning_rate", "threads", "seed", "desired_speed", "baseline_optimizer",
+//                "optimizer"}}
 struct DiagnoseJob {
   std::string scenario_path, trajectories_path;
   ScenarioDef scenario;

@@ -241,7 +241,8 @@ CMPM_API cmpm_Status cmpm_PredictRecording(const char* request_json, const char*
  *                "source_margin": 2, "null_replicates": 6, "alpha": 0.01, "max_terms": 3,
  *                "min_gain": 0.1, "min_gain_z": 3, "candidates": [NAME, ...],
  *                "params": [NAME, ...], "iterations": 60, "learning_rate": 0.05,
- *                "threads": 1, "seed": 1, "desired_speed": "free"},
+ *                "threads": 1, "seed": 1, "desired_speed": "free",
+ *                "baseline_optimizer": "adam", "optimizer": "adam"},
  *    "input": {"max_bytes": 268435456, "allow_outside_paths": false}}
  * Blocks for seconds to minutes; the result does not depend on "threads".
  * CMPM_ERROR_INVALID_INPUT as for cmpm_TrainModel, and for recordings too short to split into
