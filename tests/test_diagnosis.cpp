@@ -5,6 +5,8 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <optional>
+#include <tuple>
 
 #include "engine/diagnosis/diagnose.hpp"
 #include "engine/diagnosis/synthetic.hpp"
@@ -167,4 +169,33 @@ TEST_CASE("the selection's effective sample size counts the disjoint windows eac
   // People add up; a count below one is one window.
   CHECK(effective_sample_size({1, 4, 0}, 1, 3) == Approx(1 + 2 + 1));
   CHECK(effective_sample_size({}, 1, 3) == 0);
+}
+
+TEST_CASE("a wall friction candidate drags along the whole straight wall beside its region", "[diagnosis]") {
+  // The test corridor (walls y = 0 and y = 3 over the whole domain, x in [-2, 16]) with a block
+  // reaching down from the upper wall over x in [5, 9] to y = 2.5.
+  json venue = json::parse(kCorridor);
+  venue["geometry"]["obstacles"].push_back({{"rect", {5, 2.5, 9, 3}}});
+  const ScenarioDef s = ScenarioDef::parse(venue, "walls", CROWDMPM_BINARY_DIR);
+  const auto close = [](const Vec2& a, double x, double y) {
+    INFO("(" << a.x() << ", " << a.y() << ") against (" << x << ", " << y << ")");
+    CHECK(std::abs(a.x() - x) < 0.35);
+    CHECK(std::abs(a.y() - y) < 0.05);
+  };
+  const auto ends = [](const std::optional<std::pair<Vec2, Vec2>>& w) {
+    REQUIRE(w);
+    return w->first.x() < w->second.x() ? *w : std::make_pair(w->second, w->first);
+  };
+  // The lower wall, from the domain's left edge to its right one.
+  auto [a, b] = ends(straight_wall(s.geo, Vec2(7, 0.8)));
+  close(a, -2, 0);
+  close(b, 16, 0);
+  // The block's lower face, corner to corner.
+  std::tie(a, b) = ends(straight_wall(s.geo, Vec2(7, 2.0)));
+  close(a, 5, 2.5);
+  close(b, 9, 2.5);
+  // The upper wall left of the block ends where the block begins.
+  std::tie(a, b) = ends(straight_wall(s.geo, Vec2(2, 2.4)));
+  close(a, -2, 3);
+  close(b, 5, 3);
 }

@@ -8,6 +8,7 @@
 #include <fstream>
 #include <limits>
 #include <map>
+#include <optional>
 #include <sstream>
 
 #include "engine/core/input.hpp"
@@ -160,16 +161,23 @@ std::vector<WindowErrors> rollout_errors(const ScenarioDef& s, const Model& m, c
 
 // Who of each window passes within `radius` of `center` (everyone when radius < 0).
 using Membership = std::vector<std::vector<char>>;
-Membership members(const std::vector<TrainWindow>& ws, const Vec2& center, double radius) {
+double distance_to_segment(const Vec2& x, const Vec2& a, const Vec2& b) {
+  const Vec2 ab = b - a;
+  const double len2 = ab.squaredNorm();
+  const double s = len2 > 0 ? std::clamp((x - a).dot(ab) / len2, 0.0, 1.0) : 0.0;
+  return (x - (a + s * ab)).norm();
+}
+// The people of each window passing within reach at its start or any frame seen.
+Membership members(const std::vector<TrainWindow>& ws, const Reach& reach) {
   Membership m(ws.size());
+  const auto near = [&](const Vec2& x) { return distance_to_segment(x, reach.from, reach.to) <= reach.distance; };
   for (size_t i = 0; i < ws.size(); ++i) {
     const TrainWindow& tw = ws[i];
-    m[i].assign(tw.start.ids.size(), radius < 0);
-    if (radius < 0) continue;
+    m[i].assign(tw.start.ids.size(), reach.everyone());
+    if (reach.everyone()) continue;
     for (size_t a = 0; a < tw.start.ids.size(); ++a) {
-      bool in = (tw.start.x[a] - center).norm() <= radius;
-      for (size_t k = 0; k < tw.seen.size() && !in; ++k)
-        in = tw.seen[k][a].allFinite() && (tw.seen[k][a] - center).norm() <= radius;
+      bool in = near(tw.start.x[a]);
+      for (size_t k = 0; k < tw.seen.size() && !in; ++k) in = tw.seen[k][a].allFinite() && near(tw.seen[k][a]);
       m[i][a] = in;
     }
   }
@@ -277,12 +285,10 @@ std::vector<Term> initial_candidates(const Cluster& c, const Vec2& global_mean, 
       j = {{"type", "slow_zone"}, {"min", {c.lo.x(), c.lo.y()}}, {"max", {c.hi.x(), c.hi.y()}}, {"factor", 0.7},
            {"learn", {"min", "max", "factor"}}};
     } else if (type == "wall_friction") {
-      // Along the wall nearest to the region, over the region's extent and a metre beyond.
-      const Vec2 n = geo.normal(c.center);
-      if (!n.allFinite() || n.squaredNorm() < 0.5) continue;
-      const Vec2 on = c.center - geo.sdf(c.center) * n, t(-n.y(), n.x());
-      const double half = std::max(2.0, c.radius + 1);
-      const Vec2 a = on - half * t, b = on + half * t;
+      // Along the whole straight wall nearest to the region (drag along one wall).
+      const auto wall = straight_wall(geo, c.center);
+      if (!wall) continue;
+      const auto& [a, b] = *wall;
       j = {{"type", "wall_friction"}, {"from", {a.x(), a.y()}}, {"to", {b.x(), b.y()}}, {"coefficient", 1.0},
            {"range", 0.5}, {"learn", {"coefficient", "range"}}};
     } else if (type == "density_speed") {
@@ -300,23 +306,22 @@ std::vector<Term> initial_candidates(const Cluster& c, const Vec2& global_mean, 
   return out;
 }
 
-// Where a fitted term acts, as a disc (centre, radius in m) whose passers-by judge it: within a
-// metre of an obstacle's rim, within an attractor's or vortex's range (at most 3 m), over a
-// zone's or wall's extent; radius -1 for the venue-wide terms (everyone).
-std::pair<Vec2, double> influence(const Term& t) {
+// Where a fitted term acts, whose passers-by judge it: within a metre of an obstacle's rim,
+// within an attractor's or vortex's range (at most 3 m), over a zone's extent, along a wall's
+// segment as far out as its drag reaches (twice its decay length and half a metre, at least a
+// metre); everyone for the venue-wide terms.
+Reach influence(const Term& t) {
   const std::string type = report_type(t.law);
   const auto& p = t.params;
-  if (type == "obstacle") return {Vec2(p[0], p[1]), p[2] + 1.0};
-  if (type == "attractor" || type == "vortex") return {Vec2(p[0], p[1]), std::clamp(p[3], 1.0, 3.0)};
+  const auto disc = [](const Vec2& c, double r) { return Reach{c, c, r}; };
+  if (type == "obstacle") return disc(Vec2(p[0], p[1]), p[2] + 1.0);
+  if (type == "attractor" || type == "vortex") return disc(Vec2(p[0], p[1]), std::clamp(p[3], 1.0, 3.0));
   if (type == "slow_zone" || type == "counterflow") {
     const Vec2 lo(p[0], p[1]), hi(p[2], p[3]);
-    return {0.5 * (lo + hi), std::max(1.0, 0.5 * (hi - lo).norm())};
+    return disc(0.5 * (lo + hi), std::max(1.0, 0.5 * (hi - lo).norm()));
   }
-  if (type == "wall_friction") {
-    const Vec2 a(p[0], p[1]), b(p[2], p[3]);
-    return {0.5 * (a + b), 0.5 * (b - a).norm() + p[5] + 0.5};
-  }
-  return {Vec2::Zero(), -1.0};
+  if (type == "wall_friction") return Reach{Vec2(p[0], p[1]), Vec2(p[2], p[3]), std::max(1.0, 2 * p[5] + 0.5)};
+  return Reach{};
 }
 
 // Why a fitted term cannot be the physics it names (empty if it can): an obstacle must stand in
@@ -338,7 +343,7 @@ std::string implausible(const Term& t, const Geometry& geo) {
 }
 
 // Terms that act on the whole venue (judged on everyone, tried once a round).
-bool is_global(const Term& t) { return influence(t).second < 0; }
+bool is_global(const Term& t) { return influence(t).everyone(); }
 
 struct FitResult {
   Model model;
@@ -420,6 +425,25 @@ const std::vector<std::string>& diagnosis_candidates() {
   static const std::vector<std::string> c = {"obstacle", "drift", "attractor", "vortex", "slow_zone",
                                              "wall_friction", "density_speed", "counterflow"};
   return c;
+}
+
+std::optional<std::pair<Vec2, Vec2>> straight_wall(const Geometry& geo, const Vec2& x) {
+  const Vec2 n = geo.normal(x);
+  if (!n.allFinite() || n.squaredNorm() < 0.5) return std::nullopt;
+  const Vec2 on = x - geo.sdf(x) * n, t(-n.y(), n.x());
+  const auto continues = [&](const Vec2& q) {
+    const Vec2 probe = q + 0.1 * n;
+    if (!(probe.x() >= geo.lo.x() && probe.x() <= geo.hi.x() && probe.y() >= geo.lo.y() && probe.y() <= geo.hi.y())) return false;
+    const Vec2 m = geo.normal(probe);
+    return std::abs(geo.sdf(probe) - 0.1) < 0.03 && m.allFinite() && m.dot(n) > 0.95;
+  };
+  if (!continues(on)) return std::nullopt;
+  const double step = 0.25, longest = 500;
+  double back = 0, ahead = 0;
+  while (back < longest && continues(on - (back + step) * t)) back += step;
+  while (ahead < longest && continues(on + (ahead + step) * t)) ahead += step;
+  if (back + ahead < 0.5) return std::nullopt;
+  return std::make_pair(Vec2(on - back * t), Vec2(on + ahead * t));
 }
 
 double effective_sample_size(const std::vector<long>& windows, double stride, double window) {
@@ -532,7 +556,7 @@ DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& pr
   res.baseline = model;
   const std::vector<std::string> types = d.candidates.empty() ? diagnosis_candidates() : d.candidates;
   const DesiredSpeed ds = d.residual.desired_speed;
-  const Membership everyone = members(sp.heldout, Vec2::Zero(), -1);
+  const Membership everyone = members(sp.heldout, Reach{});
   // The fitted baseline's held-out errors: what every round's best term is compared with first,
   // and the "before" of the report.
   const std::vector<WindowErrors> baseline_err = rollout_errors(with_terms(job.scenario, terms), model, sp.heldout, ds, d.threads);
@@ -612,10 +636,8 @@ DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& pr
       h.term.learn.assign(h.term.params.size(), 0);
       f.terms.back() = h.term;
       // Judged on the people the fitted term acts on (everyone for a venue-wide term).
-      const auto [centre, reach] = influence(h.term);
-      h.judged_center = centre;
-      h.judged_radius = reach;
-      const Membership near = reach < 0 ? everyone : members(sp.heldout, centre, reach);
+      h.judged = influence(h.term);
+      const Membership near = members(sp.heldout, h.judged);
       const ErrorStats base_region = reference(near);
       h.baseline_error = base_region.rms;
       std::vector<WindowErrors> err = rollout_errors(with_terms(job.scenario, f.terms), f.model, sp.heldout, ds, d.threads);
@@ -652,8 +674,7 @@ DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& pr
     base_err = std::move(best_err);
     res.terms.push_back(h.term);
     if (res.terms.size() == 1) {
-      res.region_center = h.judged_center;
-      res.region_radius = h.judged_radius;
+      res.region = h.judged;
     }
     say("accepted " + report_type(h.term.law) + ": " + h.why);
   }
@@ -664,7 +685,7 @@ DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& pr
   } else if (res.terms.empty()) {
     res.residual_after = res.residual_before;
   }
-  const Membership region = res.terms.empty() ? everyone : members(sp.heldout, res.region_center, res.region_radius);
+  const Membership region = members(sp.heldout, res.region);
   res.region_before = stats_of(baseline_err, sp.heldout, region).rms;
   res.region_after = stats_of(base_err, sp.heldout, region).rms;
   res.heldout_after = stats_of(base_err, sp.heldout, everyone).rms;
@@ -749,6 +770,22 @@ GridVelocityField residual_field(const ResidualMap& m, int min_people) {
   return f;
 }
 
+// "(12.0, 2.2)" for a disc round a point, "the segment from (0.0, 0.0) to (24.0, 0.0)" otherwise.
+std::string where(const Reach& r) {
+  return r.from == r.to ? point(r.from) : "the segment from " + point(r.from) + " to " + point(r.to);
+}
+// "everyone", or the disc round it ({center, radius}) and, along a segment, its ends and the distance.
+json reach_json(const Reach& r) {
+  if (r.everyone()) return "everyone";
+  json j = {{"center", {r.center().x(), r.center().y()}}, {"radius", r.radius()}};
+  if (r.from != r.to) {
+    j["from"] = {r.from.x(), r.from.y()};
+    j["to"] = {r.to.x(), r.to.y()};
+    j["distance"] = r.distance;
+  }
+  return j;
+}
+
 std::string error_unit(const DiagnoseOptions& o) {
   return "m: root-mean-square position error over " + num(o.window, 1) + " s rollouts from the recorded state, held-out part";
 }
@@ -766,9 +803,9 @@ json diagnosis_json(const DiagnoseJob& job, const DiagnosisResult& r) {
   verdict["heldout_error_global_before"] = r.heldout_before;
   verdict["heldout_error_global_after"] = r.heldout_after;
   verdict["error_unit"] = error_unit(job.options) +
-                          (r.terms.empty() ? ", everyone"
-                                           : ", people passing within " + num(r.region_radius, 1) + " m of " + point(r.region_center) +
-                                                 ", where the first term acts (global figures beside)");
+                          (r.region.everyone() ? ", everyone"
+                                               : ", people passing within " + num(r.region.distance, 1) + " m of " + where(r.region) +
+                                                     ", where the first term acts (global figures beside)");
   verdict["explanation"] = r.explanation;
   json regions = json::array();
   for (const Region& g : r.regions)
@@ -781,9 +818,7 @@ json diagnosis_json(const DiagnoseJob& job, const DiagnosisResult& r) {
                     {"heldout_error_global", fin(h.heldout_error_global)}, {"baseline_error", fin(h.baseline_error)},
                     {"score", fin(h.score - h.baseline_score)}, {"gain", fin(h.gain)}, {"gain_z", fin(h.gain_z)},
                     {"round", h.round + 1}, {"region", h.region}, {"accepted", h.accepted}, {"reason", h.why},
-                    {"judged_on", h.judged_radius < 0 ? json("everyone")
-                                                      : json({{"center", {h.judged_center.x(), h.judged_center.y()}},
-                                                              {"radius", h.judged_radius}})},
+                    {"judged_on", reach_json(h.judged)},
                     {"term", h.term.to_json()}});
   }
   json terms = json::array();

@@ -7,6 +7,7 @@
 // error on the recording's later, held-out part clearly beyond noise. Up to max_terms terms
 // are added greedily; otherwise the verdict is "none". docs/diagnosis.md has the method.
 #include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -55,6 +56,12 @@ const std::vector<std::string>& diagnosis_candidates();
 // windows their time spans. `windows`: W of each person compared (each at least 1).
 double effective_sample_size(const std::vector<long>& windows, double stride, double window);
 
+// The straight stretch of wall nearest to x (what a wall_friction candidate drags along): from
+// the wall's point nearest to x, followed both ways in 0.25 m steps for as long as a probe 0.1 m
+// out from it still finds the wall 0.1 m away with the same normal; it ends at a corner, an
+// opening or the domain's edge. Empty when there is no such stretch of at least 0.5 m.
+std::optional<std::pair<Vec2, Vec2>> straight_wall(const Geometry& geo, const Vec2& x);
+
 struct Region {
   Vec2 center = Vec2::Zero();
   double radius = 0;
@@ -62,11 +69,20 @@ struct Region {
   int round = 0;
 };
 
+// Where a term acts: the people passing within `distance` m of the segment [from, to] (a disc
+// round a point when from == to) judge it; distance < 0: everyone (a venue-wide term).
+struct Reach {
+  Vec2 from = Vec2::Zero(), to = Vec2::Zero();
+  double distance = -1;  // m
+  bool everyone() const { return distance < 0; }
+  Vec2 center() const { return 0.5 * (from + to); }
+  double radius() const { return everyone() ? -1 : 0.5 * (to - from).norm() + distance; }  // of the disc round it
+};
+
 struct Hypothesis {
   Term term;
   int round = 0, region = -1;         // the region it was initialised from (-1: the whole venue)
-  Vec2 judged_center = Vec2::Zero();  // the people passing within judged_radius of it judge the term
-  double judged_radius = -1;          // m (-1: everyone)
+  Reach judged;                       // the people passing there judge the term
   double heldout_error = 0;           // RMS position error of the people passing there, m
   double heldout_error_global = 0;    // the same over everyone, m
   double baseline_error = 0;          // the baseline's regional error it is compared with, m
@@ -83,8 +99,7 @@ struct DiagnosisResult {
   std::vector<Hypothesis> hypotheses;
   double heldout_before = 0, heldout_after = 0;          // global RMS position error, m
   double region_before = 0, region_after = 0;            // over the people passing the first accepted term's region (global if none)
-  Vec2 region_center = Vec2::Zero();
-  double region_radius = -1;                             // m (-1: everyone)
+  Reach region;                                          // where the first accepted term acts (everyone if none)
   ResidualMap residual_before, residual_after;           // on the training part
   double tracking_noise = 0;          // m, estimated
   double train_end = 0, heldout_start = 0, heldout_end = 0;  // s
