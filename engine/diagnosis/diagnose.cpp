@@ -159,7 +159,7 @@ std::vector<WindowErrors> rollout_errors(const ScenarioDef& s, const Model& m, c
   return out;
 }
 
-// Who of each window passes within `radius` of `center` (everyone when radius < 0).
+// Who of each window is counted (by window, by person).
 using Membership = std::vector<std::vector<char>>;
 double distance_to_segment(const Vec2& x, const Vec2& a, const Vec2& b) {
   const Vec2 ab = b - a;
@@ -167,7 +167,8 @@ double distance_to_segment(const Vec2& x, const Vec2& a, const Vec2& b) {
   const double s = len2 > 0 ? std::clamp((x - a).dot(ab) / len2, 0.0, 1.0) : 0.0;
   return (x - (a + s * ab)).norm();
 }
-// The people of each window passing within reach at its start or any frame seen.
+// The people of each window passing within reach at its start or any frame seen (everyone for
+// a venue-wide reach).
 Membership members(const std::vector<TrainWindow>& ws, const Reach& reach) {
   Membership m(ws.size());
   const auto near = [&](const Vec2& x) { return distance_to_segment(x, reach.from, reach.to) <= reach.distance; };
