@@ -31,7 +31,7 @@ void MetricsRecorder::record(const Simulation& sim, const FieldFrame& f) {
     Vec2 at = f.node_position(i, j);
     // Peaks are reported where people can be: nodes in the grid's padding outside the domain
     // only carry the tail of the B-spline.
-    if (at.x() < s_.geo.lo.x() || at.y() < s_.geo.lo.y() || at.x() > s_.geo.hi.x() || at.y() > s_.geo.hi.y()) continue;
+    if (!s_.geo.in_domain(at)) continue;
     if (f.density[k] > peak_density_.value) peak_density_ = {f.density[k], t, f.node_position(i, j)};
     if (f.pressure[k] > peak_pressure_.value) peak_pressure_ = {f.pressure[k], t, f.node_position(i, j)};
   }

@@ -161,17 +161,11 @@ std::vector<WindowErrors> rollout_errors(const ScenarioDef& s, const Model& m, c
 
 // Who of each window is counted (by window, by person).
 using Membership = std::vector<std::vector<char>>;
-double distance_to_segment(const Vec2& x, const Vec2& a, const Vec2& b) {
-  const Vec2 ab = b - a;
-  const double len2 = ab.squaredNorm();
-  const double s = len2 > 0 ? std::clamp((x - a).dot(ab) / len2, 0.0, 1.0) : 0.0;
-  return (x - (a + s * ab)).norm();
-}
 // The people of each window passing within reach at its start or any frame seen (everyone for
 // a venue-wide reach).
 Membership members(const std::vector<TrainWindow>& ws, const Reach& reach) {
   Membership m(ws.size());
-  const auto near = [&](const Vec2& x) { return distance_to_segment(x, reach.from, reach.to) <= reach.distance; };
+  const auto near = [&](const Vec2& x) { return segment_distance(x, reach.from, reach.to) <= reach.distance; };
   for (size_t i = 0; i < ws.size(); ++i) {
     const TrainWindow& tw = ws[i];
     m[i].assign(tw.start.ids.size(), reach.everyone());
@@ -333,8 +327,7 @@ std::string implausible(const Term& t, const Geometry& geo) {
   const Vec2 c(t.params[0], t.params[1]);
   const double r = t.params[2];
   if (r < 0.1) return "its radius " + num(r) + " m is below 0.1 m";
-  if (!(c.x() >= geo.lo.x() && c.x() <= geo.hi.x() && c.y() >= geo.lo.y() && c.y() <= geo.hi.y()))
-    return "its centre " + point(c) + " lies outside the domain";
+  if (!geo.in_domain(c)) return "its centre " + point(c) + " lies outside the domain";
   // A centre inside a known solid is that solid reaching further out (a constriction, a wall's
   // protrusion) when the disc reaches at least 0.1 m into the walkable space.
   const double s = geo.sdf(c);
@@ -434,7 +427,7 @@ std::optional<std::pair<Vec2, Vec2>> straight_wall(const Geometry& geo, const Ve
   const Vec2 on = x - geo.sdf(x) * n, t(-n.y(), n.x());
   const auto continues = [&](const Vec2& q) {
     const Vec2 probe = q + 0.1 * n;
-    if (!(probe.x() >= geo.lo.x() && probe.x() <= geo.hi.x() && probe.y() >= geo.lo.y() && probe.y() <= geo.hi.y())) return false;
+    if (!geo.in_domain(probe)) return false;
     const Vec2 m = geo.normal(probe);
     return std::abs(geo.sdf(probe) - 0.1) < 0.03 && m.allFinite() && m.dot(n) > 0.95;
   };

@@ -27,6 +27,10 @@ class Geometry {
   Vec2 sdf_gradient(const Vec2& p) const;
   // Unit outward normal of the solid nearest to p (gradient of sdf).
   Vec2 normal(const Vec2& p) const;
+  // Whether p lies within the domain's bounds (border included).
+  bool in_domain(const Vec2& p) const {
+    return p.x() >= lo.x() && p.x() <= hi.x() && p.y() >= lo.y() && p.y() <= hi.y();
+  }
   // Index of the exit containing p, or -1.
   int exit_at(const Vec2& p) const;
   const NamedShape* find_target(const std::string& id) const;  // exit or goal by id
