@@ -56,7 +56,7 @@ const char* kUsage =
     "  render-video SCENARIO --out DIR [options]\n"
     "                      film a simulated crowd through a tilted camera (synthetic video\n"
     "                      with its calibration and true grid velocity)\n"
-    "  diagnose --scenario S --observed T --out DIR [--model M] [options]\n"
+    "  diagnose --scenario S (--observed T | --video V --calibration C) --out DIR [--model M] [options]\n"
     "                      find physics the scenario lacks: locate where the fitted model\n"
     "                      and the recording disagree, fit candidate terms, keep those that\n"
     "                      lower the held-out error (report.json, pictures, summary.txt)\n"
@@ -80,6 +80,7 @@ const char* kUsage =
 
 const char* kDiagnoseHelp =
     "usage: crowdmpm diagnose --scenario S --observed TRAJECTORIES --out DIR [options]\n"
+    "       crowdmpm diagnose --scenario S --video V (--calibration CAL | --scale S) --out DIR [options]\n"
     "\n"
     "Fits the model (its v0_scale, tau and time_gap) on the recording's first part, locates\n"
     "where it and the recording still disagree (residuals of short rollouts restarted from the\n"
@@ -97,7 +98,13 @@ const char* kDiagnoseHelp =
     "\n"
     "options:\n"
     "  --scenario S       the venue the user believes (crowdmpm-scenario JSON); required\n"
-    "  --observed T       the recording (PeTrack text; --trajectories is the same); required\n"
+    "  --observed T       the recording (PeTrack text; --trajectories is the same)\n"
+    "  --video V          or a video: its people, detected in every frame and followed by its\n"
+    "                     optical flow, are the recording (written to DIR/video_tracks.txt);\n"
+    "                     with --calibration CAL or --scale S, and --first, --frames, --fps,\n"
+    "                     --method (default farneback), --smoothing as 'crowdmpm flow'; other\n"
+    "                     video options (\"tracks\": \"flow\" for a crowd too dense to see each\n"
+    "                     person) in a request: docs/diagnosis.md\n"
     "  --out DIR          output folder; required\n"
     "  --model M          material model to start from (default: the scenario's)\n"
     "  --train-share F    first share of the recording for fitting (default 0.6)\n"
@@ -268,6 +275,7 @@ const char* kFlowHelp =
     "  --roi X,Y,X,Y,...  region of interest, a polygon in pixels (x right, y down)\n"
     "  --sample-stride N  pixels between flow samples (default 2)\n"
     "  --min-speed V      m/s below which a pixel counts as still (default 0.05)\n"
+    "  --min-pixels P     pixels per frame below which a pixel's flow counts as still (default 0.2)\n"
     "  --glitch-ratio R   a field whose RMS speed is R times that of the 0.5 s before and after\n"
     "                     it, over a quarter of the view or more, is a camera glitch (jump, cut):\n"
     "                     cleared and listed (default 2; 0: off)\n"
@@ -358,6 +366,8 @@ struct Args {
   json train = json::object();  // train: the "options" of a training request (parse_train_job)
   json diagnose = json::object();  // diagnose: --options (the "options" of a diagnosis request)
   bool train_share_given = false;
+  bool density_given = false;
+  bool method_given = false;
   bool stride_given = false;
   InputPolicy input;  // --max-input-mb, --allow-outside-paths
   std::string save_snapshot, resume;
@@ -494,7 +504,10 @@ Args parse_args(int argc, char** argv, int first) {
       a.input.allow_outside_paths = true;
     }
     else if (s == "--video") a.video.path = value("--video");
-    else if (s == "--density") a.video_learn.density = parse_double(s, value(s.c_str()), 0.01, 12, "persons/m2 in [0.01, 12]");
+    else if (s == "--density") {
+      a.video_learn.density = parse_double(s, value(s.c_str()), 0.01, 12, "persons/m2 in [0.01, 12]");
+      a.density_given = true;
+    }
     else if (s == "--clip-length") a.video_learn.clip = parse_double(s, value(s.c_str()), 0.01, 1e4, "seconds > 0");
     else if (s == "--train-share") {
       a.video_learn.train_share = parse_double(s, value(s.c_str()), 0.05, 0.95, "a share in [0.05, 0.95]");
@@ -505,7 +518,10 @@ Args parse_args(int argc, char** argv, int first) {
     else if (s == "--calibration") a.video.calibration = value("--calibration");
     else if (s == "--scale") a.video.scale = parse_double(s, value("--scale"), 1e-6, 100, "metres per pixel in (0, 100]");
     else if (s == "--cell") a.video.cell = parse_double(s, value("--cell"), 0.05, 10, "a grid spacing in [0.05, 10] m");
-    else if (s == "--method") a.video.flow.method = flow_method(value("--method"));
+    else if (s == "--method") {
+      a.video.flow.method = flow_method(value("--method"));
+      a.method_given = true;
+    }
     else if (s == "--dis-preset") a.video.flow.dis_preset = static_cast<int>(parse_whole(s, value("--dis-preset"), 0, 2, "0, 1 or 2"));
     else if (s == "--smoothing") a.video.flow.smoothing = parse_double(s, value("--smoothing"), 0, 0.99, "in [0, 0.99]");
     else if (s == "--first") a.video.video.first = parse_whole(s, value("--first"), 0, 1e9, "a frame number >= 0");
@@ -528,6 +544,7 @@ Args parse_args(int argc, char** argv, int first) {
       for (size_t k = 0; k < v.size(); k += 2) a.video.video.roi.emplace_back(v[k], v[k + 1]);
     } else if (s == "--sample-stride") a.video.field.sample_stride = static_cast<int>(parse_whole(s, value(s.c_str()), 1, 64, "1..64 pixels"));
     else if (s == "--min-speed") a.video.field.min_speed = parse_double(s, value(s.c_str()), 0, 10, "a speed in [0, 10] m/s");
+    else if (s == "--min-pixels") a.video.field.min_pixels = parse_double(s, value(s.c_str()), 0, 9.99, "pixels per frame in [0, 10)");
     else if (s == "--glitch-ratio") {
       a.video.field.glitch_ratio = parse_double(s, value(s.c_str()), 0, 100, "0 (off) or a ratio in (1, 100)");
       if (a.video.field.glitch_ratio > 0 && a.video.field.glitch_ratio <= 1) usage_error("--glitch-ratio must be 0 (off) or above 1");
@@ -919,28 +936,45 @@ int cmd_render_video(const Args& a) {
 
 int cmd_diagnose(const Args& a) {
   if (a.help) { std::fputs(kDiagnoseHelp, stdout); return 0; }
-  if (a.scenario.empty() || a.trajectories.empty()) usage_error("diagnose needs --scenario and --observed");
+  const bool video = !a.video.path.empty();
+  if (a.scenario.empty() || a.trajectories.empty() == !video)
+    usage_error("diagnose needs --scenario and a recording: --observed TRAJECTORIES or --video V (one of them)");
+  if (video && a.video.calibration.empty() == !(a.video.scale > 0))
+    usage_error("diagnose --video needs --calibration CAL or --scale S (one of them)");
   if (a.out.empty()) usage_error("diagnose needs --out DIR");
   if (!a.positional.empty()) usage_error("diagnose takes no positional arguments (got '" + a.positional[0] + "')");
-  if (a.datasets.size() > 1 || a.datasets[0].second.size() > 1) usage_error("diagnose takes one --scenario and one --observed file");
+  if (a.datasets.size() > 1 || (!video && a.datasets[0].second.size() > 1)) usage_error("diagnose takes one --scenario and one --observed file");
   json options = a.diagnose;
   options["threads"] = a.threads;
   if (a.train_share_given) options["train_share"] = a.video_learn.train_share;
   for (const char* k : {"iterations", "seed"})
     if (a.train.contains(k)) options[k] = a.train[k];
-  json request = {{"scenario", a.scenario}, {"trajectories", a.trajectories}, {"options", options},
+  json request = {{"scenario", a.scenario}, {"options", options},
                   {"input", {{"max_bytes", a.input.max_bytes}, {"allow_outside_paths", a.input.allow_outside_paths}}}};
+  if (video) {
+    const VideoSource& v = a.video;
+    json jv = {{"path", v.path}, {"first", v.video.first}, {"frames", v.video.count}, {"fps", v.video.fps}, {"smoothing", v.flow.smoothing}};
+    if (a.method_given) jv["method"] = v.flow.method == FlowOptions::Method::Dis ? "dis" : "farneback";
+    if (!v.calibration.empty()) jv["calibration"] = v.calibration;
+    else jv["scale"] = v.scale;
+    if (a.density_given) jv["density"] = a.video_learn.density;
+    if (!v.video.roi.empty()) usage_error("diagnose --video reads the whole frame (--roi is not supported here)");
+    request["video"] = jv;
+  } else {
+    request["trajectories"] = a.trajectories;
+  }
   if (!a.model.empty()) request["model"] = a.model;
   const DiagnoseJob job = parse_diagnose_job(request);
-  std::printf("%s: %zu people, %.1f s at %g fps, in %s\n", a.trajectories.c_str(), job.recording.person_count(),
-              job.recording.duration(), job.recording.framerate, a.scenario.c_str());
+  std::printf("%s: %zu %s, %.1f s at %g fps, in %s\n", job.trajectories_path.c_str(), job.recording.person_count(),
+              video ? "tracks" : "people", job.recording.duration(), job.recording.framerate, a.scenario.c_str());
   const DiagnosisResult r = run_diagnosis(job, [&](const std::string& line) {
     if (!a.quiet) std::printf("%s\n", line.c_str());
     std::fflush(stdout);
   });
   write_diagnosis(job, r, a.out);
   std::printf("%s\n", r.explanation.c_str());
-  std::printf("wrote %s/report.json, summary.txt, residual_before.png, residual_after.png, scenario.json, model.json\n", a.out.c_str());
+  std::printf("wrote %s/report.json, summary.txt, residual_before.png, residual_after.png, scenario.json, model.json%s\n", a.out.c_str(),
+              video ? ", video_tracks.txt" : "");
   return 0;
 }
 

@@ -5,11 +5,15 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <algorithm>
+#include <map>
+#include <vector>
 #include <optional>
 #include <tuple>
 
 #include "engine/diagnosis/diagnose.hpp"
 #include "engine/diagnosis/synthetic.hpp"
+#include "engine/vision/synthetic.hpp"
 #include "support.hpp"
 
 using namespace crowdmpm;
@@ -119,6 +123,85 @@ TEST_CASE("diagnosis of a recording with nothing concealed finds nothing", "[dia
   CHECK(rep.at("terms").empty());
 }
 
+TEST_CASE("diagnosis from a rendered video: its people are detected and followed, and a concealed obstacle is found",
+          "[diagnosis][vision]") {
+  const fs::path dir = fs::path(CROWDMPM_BINARY_DIR) / "tests" / "diagnosis" / "video";
+  fs::create_directories(dir);
+  const json belief = json::parse(kCorridor);
+  save_json_file(belief, (dir / "belief.json").string());
+  json truth = belief;
+  truth["geometry"]["obstacles"].push_back({{"circle", {{"center", {7, 1.5}}, {"radius", 0.5}}}});
+  const ScenarioDef t = ScenarioDef::parse(truth, "truth", dir.string());
+  const Model sfm = Model::default_of("social_force");
+  // Filmed from 20 degrees off straight down at 40 pixels per metre, 10 frames per second.
+  RenderOptions ro;
+  ro.camera.tilt_deg = 20;
+  ro.camera.width = 720;
+  ro.camera.height = 160;
+  ro.duration = t.duration;
+  {
+    Simulation sim(t, sfm, 2);
+    const RenderResult rr = render_synthetic_video(sim, ro, (dir / "video.avi").string());
+    save_json_file(rr.calibration.to_json({t.geo.lo, Vec2(t.geo.hi.x(), t.geo.lo.y()), t.geo.hi, Vec2(t.geo.lo.x(), t.geo.hi.y())}),
+                   (dir / "calibration.json").string());
+  }
+  write_noisy_recording(t, sfm, 0, 1, 2, (dir / "filmed.txt").string());
+  const TrajectorySet filmed = TrajectorySet::read((dir / "filmed.txt").string());
+  const json request = {{"scenario", (dir / "belief.json").string()},
+                        {"video", {{"path", (dir / "video.avi").string()}, {"calibration", (dir / "calibration.json").string()}}},
+                        {"options", {{"iterations", 30}, {"null_replicates", 3}, {"threads", 2}, {"max_terms", 1},
+                                     {"candidates", {"obstacle", "drift", "slow_zone"}}}}};
+  const DiagnoseJob job = parse_diagnose_job(request);
+  REQUIRE(job.from_video);
+  const TrajectorySet& seen = job.recording;
+  CHECK(seen.framerate == 10);
+  // The people found: about as many as were filmed, each where somebody was.
+  long frames = 0;
+  double count_error = 0;
+  std::vector<double> off;  // each found person's distance to the nearest filmed one
+  for (long f = 50; f <= filmed.frame_max(); f += 10) {
+    const auto [a, b] = filmed.frame(f);
+    const auto [c, d] = seen.frame(f);
+    // People in view: the corridor, not the entrance behind its start.
+    long in_view = 0, seen_in_view = 0;
+    for (auto p = a; p != b; ++p) in_view += p->x > 0;
+    for (auto q = c; q != d; ++q) {
+      if (q->x <= 0) continue;
+      ++seen_in_view;
+      double best = 1e9;
+      for (auto p = a; p != b; ++p) best = std::min(best, std::hypot(p->x - q->x, p->y - q->y));
+      off.push_back(best);
+    }
+    count_error += std::abs(static_cast<double>(seen_in_view - in_view)) / static_cast<double>(std::max(1L, in_view));
+    ++frames;
+  }
+  REQUIRE(off.size() > 500);
+  std::sort(off.begin(), off.end());
+  const double median = off[off.size() / 2], q90 = off[off.size() * 9 / 10];
+  INFO(off.size() << " people found in " << frames << " frames, off the nearest filmed one by " << median << " m (median), "
+                  << q90 << " m (90%); mean count error " << count_error / static_cast<double>(frames));
+  CHECK(count_error / static_cast<double>(frames) < 0.15);
+  CHECK(median < 0.1);
+  CHECK(q90 < 0.3);
+  // Followed: most of what was seen belongs to tracks of 3 s or more.
+  std::map<long, long> length;
+  for (const TrackPoint& p : seen.points) ++length[p.id];
+  long long_points = 0;
+  for (const auto& [id, n] : length) long_points += n >= 30 ? n : 0;
+  CHECK(long_points > 0.8 * static_cast<double>(seen.points.size()));
+
+  const DiagnosisResult r = run_diagnosis(job, [](const std::string& s) { std::printf("  %s\n", s.c_str()); });
+  write_diagnosis(job, r, (dir / "out").string());
+  CHECK(fs::file_size(dir / "out" / "video_tracks.txt") > 0);
+  REQUIRE(r.terms.size() == 1);
+  CHECK(std::string(r.terms[0].law->type()) == "obstacle");
+  const double miss = std::hypot(r.terms[0].params[0] - 7, r.terms[0].params[1] - 1.5);
+  std::printf("from video: obstacle at (%.2f, %.2f), radius %.2f (truth (7, 1.5), 0.5): %.2f m off; held-out %.3f -> %.3f m\n",
+              r.terms[0].params[0], r.terms[0].params[1], r.terms[0].params[2], miss, r.region_before, r.region_after);
+  CHECK(miss < 1.0);
+  CHECK(r.region_after < 0.9 * r.region_before);
+}
+
 TEST_CASE("diagnosis requests name what is wrong", "[diagnosis]") {
   const fs::path dir = fs::path(CROWDMPM_BINARY_DIR) / "tests" / "diagnosis" / "bad";
   fs::create_directories(dir);
@@ -155,6 +238,10 @@ TEST_CASE("diagnosis requests name what is wrong", "[diagnosis]") {
   }
   fails_with({{"scenario", belief}, {"trajectories", (dir / "missing.txt").string()}}, "missing.txt");
   fails_with({{"scenario", belief}}, "trajectories");
+  fails_with({{"scenario", belief}, {"trajectories", rec}, {"video", {{"path", rec}, {"scale", 0.01}}}}, "\"trajectories\" or \"video\"");
+  fails_with({{"scenario", belief}, {"video", {{"path", rec}}}}, "\"calibration\"");
+  fails_with({{"scenario", belief}, {"video", {{"path", rec}, {"scale", 0.01}, {"tracks", "guess"}}}}, "tracks");
+  fails_with({{"scenario", belief}, {"video", {{"path", (dir / "missing.avi").string()}, {"scale", 0.01}}}}, "missing.avi");
   fails_with({{"scenario", belief}, {"trajectories", rec}}, "too short to diagnose");
 }
 

@@ -9,8 +9,11 @@
 #include <functional>
 #include <filesystem>
 #include <fstream>
+#include <map>
+#include <optional>
 
 #include "engine/core/error.hpp"
+#include "engine/vision/flow_tracks.hpp"
 #include "engine/vision/synthetic.hpp"
 #include "engine/vision/video_job.hpp"
 #include "engine/vision/video_learn.hpp"
@@ -393,4 +396,128 @@ TEST_CASE("a camera glitch is found as a one-frame speed spike over most of the 
   CHECK(held_out_end(60, 40, {30}) == 60);
   CHECK(held_out_end(60, 20, {10, 30, 50}) == 30);
   CHECK(held_out_end(60, 30, {30}) == 60);
+}
+
+namespace {
+
+// Fields on a 0.25 m grid over [0, 20] x [0, 4] m at 10 fps, every one the same: velocity(x) where
+// it is given (moving), nothing elsewhere.
+VideoFlow steady_flow(const std::function<std::optional<Vec2>(const Vec2&)>& velocity, int fields) {
+  VideoFlow vf;
+  vf.info.fps = 10;
+  GridVelocityField f;
+  f.origin = Vec2(-0.5, -0.5);
+  f.dx = 0.25;
+  f.nx = 85;
+  f.ny = 21;
+  f.velocity.assign(static_cast<size_t>(f.nx) * f.ny, Vec2::Zero());
+  f.mask.assign(f.velocity.size(), 0);
+  for (int j = 0; j < f.ny; ++j)
+    for (int i = 0; i < f.nx; ++i)
+      if (auto v = velocity(f.origin + f.dx * Vec2(i, j))) {
+        f.velocity[static_cast<size_t>(j) * f.nx + i] = *v;
+        f.mask[static_cast<size_t>(j) * f.nx + i] = 1;
+      }
+  vf.fields.assign(static_cast<size_t>(fields), f);
+  vf.covered.assign(f.velocity.size(), 1);
+  return vf;
+}
+
+Geometry box_venue() {
+  Geometry g;
+  g.lo = Vec2(0, 0);
+  g.hi = Vec2(20, 4);
+  return g;
+}
+
+}  // namespace
+
+TEST_CASE("tracks carried by flow move with it, fill the moving crowd at the density asked and go round what it goes round",
+          "[vision]") {
+  const Geometry venue = box_venue();
+  FlowTrackOptions o;
+  o.density = 2;
+  SECTION("a uniform stream across the view") {
+    // 1 m/s along x in the band 1 <= y <= 3 m, for 10 s.
+    const VideoFlow vf = steady_flow([](const Vec2& x) -> std::optional<Vec2> {
+      if (x.y() >= 1 && x.y() <= 3) return Vec2(1, 0);
+      return std::nullopt;
+    }, 100);
+    const TrajectorySet t = flow_tracks(vf, venue, o, "stream");
+    CHECK(t.framerate == 10);
+    CHECK(t.frame_min() == 0);
+    CHECK(t.frame_max() == 100);
+    // Every step of a track inside the band is the flow's: 0.1 m along x per frame.
+    std::map<long, TrackPoint> last;
+    long steps = 0;
+    for (const TrackPoint& p : t.points) {
+      auto it = last.find(p.id);
+      if (it != last.end() && p.x < 19.5) {  // (the domain's edge at 20 m holds a body's half width off)
+        REQUIRE(p.frame == it->second.frame + 1);
+        CHECK(std::abs(p.x - it->second.x - 0.1) < 1e-9);
+        CHECK(std::abs(p.y - it->second.y) < 1e-9);
+        ++steps;
+      }
+      last[p.id] = p;
+      CHECK(p.y > 0.6);  // the band and the points its B-spline edge still carries
+      CHECK(p.y < 3.4);
+    }
+    CHECK(steps > 1000);
+    // The band holds tracks all along at about the density asked (2 m x 20 m at 2 /m2; its
+    // edges, where less than half the field's weight moves, start none).
+    for (long f : {0L, 50L, 100L}) {
+      const auto [b, e] = t.frame(f);
+      const double n = static_cast<double>(e - b);
+      INFO("frame " << f << ": " << n << " tracks");
+      CHECK(n > 0.7 * 2 * 2 * 20);
+      CHECK(n < 1.3 * 2 * 2 * 20);
+    }
+  }
+  SECTION("a stream round a disc nobody walks on") {
+    // Potential flow past a cylinder of radius 0.8 m at (10, 2): nothing moves inside it.
+    const Vec2 c(10, 2);
+    const double R = 0.8;
+    const VideoFlow vf = steady_flow([&](const Vec2& x) -> std::optional<Vec2> {
+      const Vec2 d = x - c;
+      const double r2 = d.squaredNorm();
+      if (r2 < R * R) return std::nullopt;
+      const double k = R * R / (r2 * r2);
+      return Vec2(1 - k * (d.x() * d.x() - d.y() * d.y()), -k * 2 * d.x() * d.y());
+    }, 150);
+    const TrajectorySet t = flow_tracks(vf, venue, o, "cylinder");
+    long inside = 0, near = 0;
+    for (const TrackPoint& p : t.points) {
+      const double r = (Vec2(p.x, p.y) - c).norm();
+      inside += r < 0.75 * R;
+      near += r < 1.5 * R;
+    }
+    INFO(inside << " of " << near << " points within 1.5 R are inside 0.75 R");
+    CHECK(near > 300);
+    CHECK(inside < 0.01 * static_cast<double>(near));
+  }
+  SECTION("a crowd that stops is held for `presence` seconds, then its tracks end") {
+    VideoFlow vf = steady_flow([](const Vec2& x) -> std::optional<Vec2> {
+      if (x.x() >= 2 && x.x() <= 18) return Vec2(0.5, 0);
+      return std::nullopt;
+    }, 60);
+    for (size_t k = 10; k < vf.fields.size(); ++k) std::fill(vf.fields[k].mask.begin(), vf.fields[k].mask.end(), 0.0);
+    o.presence = 2;
+    const TrajectorySet t = flow_tracks(vf, venue, o, "stop");
+    // Moving for 10 frames, standing from then on for 2 s (20 frames), gone after.
+    const auto [b10, e10] = t.frame(10);
+    const auto [b30, e30] = t.frame(30);
+    CHECK(e10 - b10 > 20);
+    CHECK(static_cast<double>(e30 - b30) >= 0.9 * static_cast<double>(e10 - b10));  // (the stream's front stood earlier)
+    CHECK(t.frame_max() <= 31);
+  }
+  SECTION("nothing moving, and bad options, are named") {
+    const VideoFlow still = steady_flow([](const Vec2&) -> std::optional<Vec2> { return std::nullopt; }, 5);
+    CHECK_THROWS_WITH(flow_tracks(still, venue, o, "still.avi"), Contains("still.avi: flow saw no crowd moving"));
+    FlowTrackOptions bad;
+    bad.density = 0;
+    CHECK_THROWS_WITH(bad.check(), Contains("density must be in (0, 12]"));
+    bad = FlowTrackOptions{};
+    bad.seed_speed = -1;
+    CHECK_THROWS_WITH(flow_tracks(still, venue, bad, "x"), Contains("seed_speed"));
+  }
 }

@@ -4,8 +4,11 @@
 // `crowdmpm diagnose` does and scored (identification, false findings, localisation and
 // parameter error, held-out error before and after).
 //
-// usage: diagnosis_suite SUITE.json --out DIR [--threads N] [--only SCENE:EFFECT]
-//                        [--noise SD] [--options JSON]
+// usage: diagnosis_suite SUITE.json --out DIR [--threads N] [--only SCENE:EFFECT[,SCENE:EFFECT...]]
+//                        [--noise SD] [--options JSON] [--video]
+// --video: each case is filmed instead (suite.json "video": the synthetic renderer's tilted
+// camera, textured heads, sensor noise, blur, Motion JPEG) and diagnosed from the video's optical
+// flow (the "video" request of a diagnosis), once per case instead of once per noise level.
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -17,6 +20,7 @@
 #include "engine/core/input.hpp"
 #include "engine/diagnosis/diagnose.hpp"
 #include "engine/diagnosis/synthetic.hpp"
+#include "engine/vision/synthetic.hpp"
 
 using namespace crowdmpm;
 namespace fs = std::filesystem;
@@ -30,7 +34,49 @@ struct Row {
   double loc_error = NAN, param_error = NAN;
   std::string param_name;
   double before = NAN, after = NAN, global_before = NAN, global_after = NAN, seconds = 0;
+  // Video: the flow's tracks against what was filmed (track_quality).
+  double ghosts = NAN, velocity_error = NAN, speed_ratio = NAN;
 };
+
+// Every 5th frame from 2 s on, each flow track's velocity (to the next frame) against the mean
+// velocity of the filmed people within 0.6 m of it: the share of tracks with nobody there
+// (ghosts), the RMS velocity error (m/s) and the ratio of mean speeds.
+void track_quality(const TrajectorySet& filmed, const TrajectorySet& tracks, Row& row) {
+  auto velocities = [](const TrajectorySet& t, long f) {
+    std::vector<std::pair<Vec2, Vec2>> out;
+    const auto [a0, a1] = t.frame(f);
+    const auto [b0, b1] = t.frame(f + 1);
+    for (const TrackPoint* a = a0; a != a1; ++a)
+      for (const TrackPoint* b = b0; b != b1; ++b)
+        if (b->id == a->id) out.emplace_back(Vec2(a->x, a->y), t.framerate * Vec2(b->x - a->x, b->y - a->y));
+    return out;
+  };
+  long n = 0, ghosts = 0, matched = 0;
+  double se = 0, speed_filmed = 0, speed_tracks = 0;
+  for (long f = tracks.frame_min() + static_cast<long>(2 * tracks.framerate); f < tracks.frame_max(); f += 5) {
+    const auto truth = velocities(filmed, f);
+    for (const auto& [x, v] : velocities(tracks, f)) {
+      ++n;
+      Vec2 u = Vec2::Zero();
+      int k = 0;
+      for (const auto& [y, w] : truth)
+        if ((y - x).norm() < 0.6) u += w, ++k;
+      if (k == 0) {
+        ++ghosts;
+        continue;
+      }
+      u /= k;
+      se += (v - u).squaredNorm();
+      speed_filmed += u.norm();
+      speed_tracks += v.norm();
+      ++matched;
+    }
+  }
+  if (n == 0 || matched == 0) return;
+  row.ghosts = static_cast<double>(ghosts) / static_cast<double>(n);
+  row.velocity_error = std::sqrt(se / static_cast<double>(matched));
+  row.speed_ratio = speed_tracks / speed_filmed;
+}
 
 // The parameter compared for each type, in the report's names.
 const char* compared_param(const std::string& type) {
@@ -55,6 +101,7 @@ int main(int argc, char** argv) {
     int threads = 2;
     double only_noise = -1;
     json extra = json::object();
+    bool video = false;
     for (int i = 1; i < argc; ++i) {
       const std::string a = argv[i];
       auto value = [&]() -> std::string {
@@ -66,10 +113,11 @@ int main(int argc, char** argv) {
       else if (a == "--only") only = value();
       else if (a == "--noise") only_noise = std::stod(value());
       else if (a == "--options") extra = json::parse(value());
+      else if (a == "--video") video = true;
       else if (!a.empty() && a[0] == '-') throw Error("unknown option " + a);
       else suite_path = a;
     }
-    if (suite_path.empty() || out_dir.empty()) throw Error("usage: diagnosis_suite SUITE.json --out DIR [--threads N] [--only SCENE:EFFECT] [--noise SD] [--options JSON]");
+    if (suite_path.empty() || out_dir.empty()) throw Error("usage: diagnosis_suite SUITE.json --out DIR [--threads N] [--only SCENE:EFFECT] [--noise SD] [--options JSON] [--video]");
     const json suite = load_json_file(suite_path);
     const fs::path scenes = fs::path(suite_path).parent_path() / "scenes";
     const Model generator = Model::parse(JsonReader(suite.at("generator_model"), "generator_model"), suite_path);
@@ -78,26 +126,51 @@ int main(int argc, char** argv) {
     for (size_t ci = 0; ci < cases.size(); ++ci) {
       const json& c = cases[ci];
       const std::string scene = c.at("scene"), effect = c.at("effect");
-      if (!only.empty() && only != scene + ":" + effect) continue;
+      if (!only.empty() && ("," + only + ",").find("," + scene + ":" + effect + ",") == std::string::npos) continue;
       const json belief = load_json_file((scenes / (scene + ".json")).string());
       json truth = belief;
       truth["seed"] = belief.value("seed", 1) + static_cast<int>(ci);
       truth["model"] = suite.at("generator_model");
       if (c.contains("obstacle")) truth["geometry"]["obstacles"].push_back({{"id", "concealed"}, {"circle", c.at("obstacle")}});
       if (c.contains("force")) truth["forces"] = json::array({c.at("force")});
-      for (double noise : suite.at("noise").get<std::vector<double>>()) {
-        if (only_noise >= 0 && std::abs(noise - only_noise) > 1e-9) continue;
-        const fs::path dir = fs::path(out_dir) / (scene + "_" + effect + "_" + fmt(noise, 2));
+      // Video: one pass per case (noise -1 in the rows: the renderer's noise and the codec's).
+      const std::vector<double> levels = video ? std::vector<double>{-1} : suite.at("noise").get<std::vector<double>>();
+      for (double noise : levels) {
+        if (!video && only_noise >= 0 && std::abs(noise - only_noise) > 1e-9) continue;
+        const fs::path dir = fs::path(out_dir) / (scene + "_" + effect + "_" + (video ? std::string("video") : fmt(noise, 2)));
         fs::create_directories(dir);
         save_json_file(belief, (dir / "belief.json").string());
         save_json_file(truth, (dir / "truth.json").string());
         const ScenarioDef truth_def = ScenarioDef::load((dir / "truth.json").string());
-        write_noisy_recording(truth_def, generator, noise, 1000 + ci * 10 + static_cast<uint64_t>(noise * 1000), threads,
-                              (dir / "observed.txt").string());
         json options = extra;
         options["threads"] = threads;
-        const json request = {{"scenario", (dir / "belief.json").string()}, {"trajectories", (dir / "observed.txt").string()},
-                              {"options", options}};
+        json request = {{"scenario", (dir / "belief.json").string()}, {"options", options}};
+        if (video) {
+          // The camera: pixels_per_metre over the domain's width, the height its depth needs at the tilt.
+          const json& vc = suite.at("video");
+          RenderOptions ro;
+          const Vec2 lo = truth_def.geo.lo, hi = truth_def.geo.hi;
+          const double ppm = vc.at("pixels_per_metre").get<double>();
+          ro.camera.tilt_deg = vc.at("tilt_deg").get<double>();
+          auto even16 = [](double px) { return 16 * std::max(4, static_cast<int>(std::ceil(px / 16))); };
+          ro.camera.width = even16(ppm * (hi.x() - lo.x()));
+          ro.camera.height = even16(ppm * (hi.y() - lo.y()) * std::cos(ro.camera.tilt_deg * M_PI / 180));
+          ro.fps = vc.at("fps").get<double>();
+          ro.duration = truth_def.duration;
+          ro.seed = 1000 + ci;
+          Simulation sim(truth_def, generator, threads);
+          const RenderResult rr = render_synthetic_video(sim, ro, (dir / "video.avi").string());
+          save_json_file(rr.calibration.to_json({lo, Vec2(hi.x(), lo.y()), hi, Vec2(lo.x(), hi.y())}), (dir / "calibration.json").string());
+          // What was filmed, as exact tracks (to compare the tracks the flow gives with).
+          write_noisy_recording(truth_def, generator, 0, 0, threads, (dir / "filmed.txt").string());
+          json v = {{"path", (dir / "video.avi").string()}, {"calibration", (dir / "calibration.json").string()}};
+          if (vc.contains("track_density")) v["density"] = vc.at("track_density");
+          request["video"] = v;
+        } else {
+          write_noisy_recording(truth_def, generator, noise, 1000 + ci * 10 + static_cast<uint64_t>(noise * 1000), threads,
+                                (dir / "observed.txt").string());
+          request["trajectories"] = (dir / "observed.txt").string();
+        }
         const auto t0 = std::chrono::steady_clock::now();
         const DiagnoseJob job = parse_diagnose_job(request);
         // Each case's progress (fits, fitted parameters, every candidate's comparison) in its folder.
@@ -132,8 +205,9 @@ int main(int argc, char** argv) {
                                          p.at("ay").get<double>() - truth_params.at("acceleration")[1].get<double>()),
             row.param_name = "acceleration";
         }
-        std::printf("%-9s %-10s noise %.2f: verdict %-10s %s  held-out %s -> %s m (everyone %s -> %s)  loc %s m  %s error %s  (%.0f s)\n",
-                    scene.c_str(), effect.c_str(), noise, row.verdict.c_str(),
+        if (video) track_quality(TrajectorySet::read((dir / "filmed.txt").string()), job.recording, row);
+        std::printf("%-9s %-10s %s: verdict %-10s %s  held-out %s -> %s m (everyone %s -> %s)  loc %s m  %s error %s  (%.0f s)\n",
+                    scene.c_str(), effect.c_str(), video ? "video     " : ("noise " + fmt(noise, 2)).c_str(), row.verdict.c_str(),
                     effect == "none" ? (row.finding ? "FALSE FINDING" : "ok") : (row.correct ? "correct" : "WRONG"),
                     fmt(row.before).c_str(), fmt(row.after).c_str(), fmt(row.global_before).c_str(), fmt(row.global_after).c_str(),
                     fmt(row.loc_error, 2).c_str(), row.param_name.empty() ? "param" : row.param_name.c_str(),
@@ -144,16 +218,20 @@ int main(int argc, char** argv) {
     }
     // The table.
     std::ofstream t(fs::path(out_dir) / "table.md");
-    t << "| scene | concealed | noise (m) | verdict | result | held-out error in region (m) | everyone (m) | localisation error (m) | parameter error | time (s) |\n"
-      << "|---|---|---|---|---|---|---|---|---|---|\n";
-    for (const Row& r : rows)
-      t << "| " << r.scene << " | " << r.effect << " | " << fmt(r.noise, 2) << " | " << r.verdict << " | "
+    t << "| scene | concealed | noise (m) | verdict | result | held-out error in region (m) | everyone (m) | localisation error (m) | parameter error | time (s) |"
+      << (video ? " tracks with nobody filmed within 0.6 m | track velocity RMS error (m/s) | track / filmed speed |" : "") << "\n"
+      << "|---|---|---|---|---|---|---|---|---|---|" << (video ? "---|---|---|" : "") << "\n";
+    for (const Row& r : rows) {
+      t << "| " << r.scene << " | " << r.effect << " | " << (r.noise < 0 ? std::string("video") : fmt(r.noise, 2)) << " | " << r.verdict << " | "
         << (r.effect == "none" ? (r.finding ? "false finding" : "no finding (right)") : (r.correct ? "correct" : "wrong")) << " | "
         << fmt(r.before) << " → " << fmt(r.after) << " | " << fmt(r.global_before) << " → " << fmt(r.global_after) << " | "
         << fmt(r.loc_error, 2) << " | " << (r.param_name.empty() ? "-" : r.param_name + " " + fmt(r.param_error, 2)) << " | "
-        << fmt(r.seconds, 0) << " |\n";
+        << fmt(r.seconds, 0) << " |";
+      if (video) t << " " << fmt(100 * r.ghosts, 1) << "% | " << fmt(r.velocity_error, 3) << " | " << fmt(r.speed_ratio, 2) << " |";
+      t << "\n";
+    }
     t << "\n";
-    std::vector<double> levels = suite.at("noise").get<std::vector<double>>();
+    const std::vector<double> levels = video ? std::vector<double>{-1} : suite.at("noise").get<std::vector<double>>();
     for (double noise : levels) {
       int n = 0, ok = 0, controls = 0, false_findings = 0;
       for (const Row& r : rows) {
@@ -167,7 +245,7 @@ int main(int argc, char** argv) {
         }
       }
       if (n + controls == 0) continue;
-      t << "- noise " << fmt(noise, 2) << " m: top-1 identification " << ok << "/" << n << ", false findings on controls "
+      t << "- " << (video ? std::string("video") : "noise " + fmt(noise, 2) + " m") << ": top-1 identification " << ok << "/" << n << ", false findings on controls "
         << false_findings << "/" << controls << "\n";
     }
     double worst_loc = 0, least_gain = 1;

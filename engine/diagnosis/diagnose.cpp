@@ -450,13 +450,56 @@ double effective_sample_size(const std::vector<long>& windows, double stride, do
 DiagnoseJob parse_diagnose_job(const json& request, const std::string& base_dir) {
   JsonReader r(request, "");
   r.require_object();
-  r.allow_only({"scenario", "trajectories", "model", "options", "input"});
+  r.allow_only({"scenario", "trajectories", "video", "model", "options", "input"});
   DiagnoseJob job;
   const InputPolicy input = input_policy(r);
   job.scenario_path = resolve_path(base_dir, r.string("scenario", std::nullopt));
-  job.trajectories_path = resolve_path(base_dir, r.string("trajectories", std::nullopt));
+  if (r.has("trajectories") == r.has("video")) r.fail("a diagnosis request needs \"trajectories\" or \"video\" (one of them)");
   job.scenario = ScenarioDef::load(job.scenario_path, input);
-  job.recording = TrajectorySet::read(job.trajectories_path, 0, input);
+  if (r.has("trajectories")) {
+    job.trajectories_path = resolve_path(base_dir, r.string("trajectories", std::nullopt));
+    job.recording = TrajectorySet::read(job.trajectories_path, 0, input);
+  } else {
+    const JsonReader v = r.at("video");
+    v.require_object();
+    v.allow_only({"path", "calibration", "scale", "first", "frames", "fps", "method", "smoothing", "tracks", "body_radius", "contrast", "cell",
+                  "density", "presence", "seed_speed", "min_speed", "min_moving_share"});
+    job.from_video = true;
+    VideoSource& src = job.video;
+    src.path = resolve_path(base_dir, v.string("path", std::nullopt));
+    src.video.input = input;
+    if (v.has("calibration") == v.has("scale")) v.fail("a video needs \"calibration\" (a calibration file) or \"scale\" (metres per pixel), one of them");
+    if (v.has("calibration")) src.calibration = resolve_path(base_dir, v.string("calibration", std::nullopt));
+    if (v.has("scale")) src.scale = v.in_range("scale", 1e-6, 100, std::nullopt);
+    src.video.first = static_cast<long>(v.in_range("first", 0, 1e9, 0));
+    src.video.count = static_cast<long>(v.in_range("frames", 0, 1e9, 0));
+    if (src.video.count == 1) v.at("frames").fail("a video needs at least 2 frames for a flow field");
+    src.video.fps = v.in_range("fps", 0, 1000, 0);
+    // Farneback and a walking crowd's 0.2 m/s by default: against the filmed tracks of the rendered
+    // suite (docs/diagnosis.md "From video") DIS saw walkers 35% slow and Farneback 12%, and
+    // slower flow was mostly the halo flow smooths round each walker.
+    src.flow.method = flow_method(v.one_of("method", {"dis", "farneback"}, std::string("farneback")));
+    src.flow.smoothing = v.in_range("smoothing", 0, 0.99, 0);
+    job.tracks.density = v.in_range("density", 0.01, 12, job.tracks.density);
+    job.tracks.presence = v.in_range("presence", 0, 600, job.tracks.presence);
+    job.tracks.seed_speed = v.in_range("seed_speed", 0, 10, job.tracks.seed_speed);
+    src.field.min_speed = v.in_range("min_speed", 0, 10, 0.2);
+    src.field.min_moving_share = v.in_range("min_moving_share", 0, 1, src.field.min_moving_share);
+    job.trajectories_path = src.path;
+    // The tracks are carried on a grid of their own, finer than the simulation's, covering the
+    // whole view: a field splatted at the simulation's spacing (0.5 m) carries them through
+    // anything smaller than a metre that the crowd walks round.
+    src.cell = v.in_range("cell", 0.05, 2, 0.25);
+    job.detect = v.one_of("tracks", {"detect", "flow"}, std::string("detect")) == "detect";
+    job.detection.body_radius = v.in_range("body_radius", 0.05, 1, job.detection.body_radius);
+    job.detection.contrast = v.in_range("contrast", 0.1, 100, job.detection.contrast);
+    if (job.detect) {
+      job.recording = detected_tracks(src, job.scenario.geo, job.detection);
+    } else {
+      const VideoFields vf = load_video_fields(src, nullptr);
+      job.recording = flow_tracks(vf.flow, job.scenario.geo, job.tracks, src.path);
+    }
+  }
   job.model = r.has("model") ? Model::load(resolve_path(base_dir, r.string("model", std::nullopt)), input)
                              : job.scenario.model_or_default();
   if (job.model.material == MaterialKind::Elastic) r.fail_at("model", "diagnosis covers the crowd, fluid and social_force models, not elastic");
@@ -834,7 +877,13 @@ json diagnosis_json(const DiagnoseJob& job, const DiagnosisResult& r) {
           {"tracking_noise_m", r.tracking_noise},
           {"split", {{"train_end_s", r.train_end}, {"heldout_start_s", r.heldout_start}, {"heldout_end_s", r.heldout_end},
                      {"train_windows", r.train_windows}, {"heldout_windows", r.heldout_windows}}},
-          {"baseline_model", r.baseline.to_json()}};
+          {"baseline_model", r.baseline.to_json()},
+          {"recording", job.from_video ? json{{"video", job.video.path},
+                                              {"tracks", job.detect ? "people detected in its frames and followed by its optical flow (video_tracks.txt)"
+                                                                    : "points carried by its flow fields (video_tracks.txt)"},
+                                              {"tracks_method", job.detect ? "detect" : "flow"},
+                                              {"tracks_count", job.recording.person_count()}}
+                                       : json{{"trajectories", job.trajectories_path}, {"people", job.recording.person_count()}}}};
 }
 
 void write_diagnosis(const DiagnoseJob& job, const DiagnosisResult& res, const std::string& out_dir) {
@@ -883,6 +932,20 @@ void write_diagnosis(const DiagnoseJob& job, const DiagnosisResult& res, const s
   sc["forces"] = forces;
   save_json_file(sc, (fs::path(out_dir) / "scenario.json").string());
   save_json_file(r.model.to_json(), (fs::path(out_dir) / "model.json").string());
+  if (job.from_video) {
+    const std::string path = (fs::path(out_dir) / "video_tracks.txt").string();
+    std::ofstream f(path);
+    f << "# framerate: " << job.recording.framerate << "\n# unit: m\n# "
+      << (job.detect ? "people detected in " + job.video.path + " and followed by its optical flow"
+                     : "tracks carried by the flow of " + job.video.path + " at " + num(job.tracks.density, 2) + " persons/m2")
+      << "\n";
+    char line[96];
+    for (const TrackPoint& p : job.recording.points) {
+      std::snprintf(line, sizeof line, "%ld %ld %.4f %.4f\n", p.id, p.frame, p.x, p.y);
+      f << line;
+    }
+    if (!f) throw Error(path + ": cannot write");
+  }
 }
 
 }  // namespace crowdmpm

@@ -12,6 +12,8 @@
 #include <vector>
 
 #include "engine/diagnosis/residuals.hpp"
+#include "engine/vision/flow_tracks.hpp"
+#include "engine/vision/video_job.hpp"
 
 namespace crowdmpm {
 
@@ -109,13 +111,28 @@ struct DiagnosisResult {
 
 // A diagnosis request (what `crowdmpm diagnose` and the C ABI's cmpm_Diagnose run):
 //   {"scenario": PATH, "trajectories": PATH, "model": PATH (default: the scenario's),
+//    or instead of "trajectories" a video, whose tracks become the recording: its people
+//    detected in every frame and followed by its optical flow ("tracks": "detect",
+//    detected_tracks), or points laid where its flow moves and carried by it ("flow",
+//    flow_tracks; for crowds too dense to see each person), flow_tracks.hpp:
+//    "video": {"path": PATH, "calibration": PATH | "scale": metres per pixel, "first": 0,
+//              "frames": 0 (to the end), "fps": 0 (the container's), "method": "farneback" | "dis",
+//              "smoothing": 0, "tracks": "detect" | "flow", "body_radius": 0.18 (m),
+//              "contrast": 4 (detection), "cell": 0.25 (m), "min_speed": 0.2 (m/s),
+//              "min_moving_share": 0.3, "density": 1.5 (persons/m^2), "seed_speed": 0.3 (m/s),
+//              "presence": 2 (s) (flow tracks)},
 //    "options": {"train_share", "window", "stride", "horizon", "residual_stride", "cell",
 //                "time_bin", "z_threshold", "null_replicates", "alpha", "max_terms",
 //                "min_gain", "min_gain_z", "candidates", "params", "iterations",
 //                "learning_rate", "threads", "seed", "desired_speed", "baseline_optimizer",
 //                "optimizer"}}
 struct DiagnoseJob {
-  std::string scenario_path, trajectories_path;
+  std::string scenario_path, trajectories_path;  // trajectories_path: the video's, for a video
+  bool from_video = false;
+  VideoSource video;          // what a video request gave
+  bool detect = true;         // its people detected and followed (detected_tracks), or flow's tracks (flow_tracks)
+  DetectOptions detection;
+  FlowTrackOptions tracks;
   ScenarioDef scenario;
   Model model;
   TrajectorySet recording;
@@ -129,7 +146,8 @@ DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& pr
 // The report (the shape: verdict, regions, hypotheses, terms) as JSON.
 json diagnosis_json(const DiagnoseJob& job, const DiagnosisResult& r);
 // Writes report.json, summary.txt, residual_before.png, residual_after.png, the scenario with
-// the accepted terms (scenario.json) and the refitted model (model.json) into out_dir.
+// the accepted terms (scenario.json) and the refitted model (model.json) into out_dir; for a
+// video, also the tracks it gave (video_tracks.txt, PeTrack text).
 void write_diagnosis(const DiagnoseJob& job, const DiagnosisResult& r, const std::string& out_dir);
 
 }  // namespace crowdmpm
