@@ -163,7 +163,7 @@ void DetectOptions::check() const {
   if (!(body_radius >= 0.05 && body_radius <= 1)) throw Error("detection: body_radius must be in [0.05, 1] m, got " + format_number(body_radius));
   if (!(contrast > 0 && contrast <= 100)) throw Error("detection: contrast must be in (0, 100], got " + format_number(contrast));
   if (!(gate > 0 && gate <= 5)) throw Error("detection: gate must be in (0, 5] m, got " + format_number(gate));
-  if (coast < 0 || coast > 100) throw Error("detection: coast must be 0..100 frames, got " + std::to_string(coast));
+  if (!(coast >= 0 && coast <= 60)) throw Error("detection: coast must be in [0, 60] s, got " + format_number(coast));
 }
 
 namespace {
@@ -209,7 +209,7 @@ std::vector<Vec2> find_blobs(const cv::Mat& grey, double r, double contrast) {
 struct Followed {
   long id = 0;
   Vec2 pixel = Vec2::Zero(), x = Vec2::Zero();
-  int missed = 0;
+  long missed = 0;
   std::vector<std::pair<long, Vec2>> coasted;  // frames predicted while missed (ground)
 };
 
@@ -226,6 +226,7 @@ TrajectorySet detected_tracks(const VideoSource& src, const Geometry& venue, con
                             (cal.to_image(g + Vec2(0, o.body_radius)) - centre).norm()) / o.body_radius;
   if (!(ppm > 0 && std::isfinite(ppm))) throw Error(src.path + ": the calibration gives no scale at the middle of the view");
   const double r_px = o.body_radius * ppm;
+  const long coast_frames = std::lround(o.coast * info.fps);
   TrajectorySet out;
   out.source = src.path;
   std::vector<Followed> tracks;
@@ -272,7 +273,7 @@ TrajectorySet detected_tracks(const VideoSource& src, const Geometry& venue, con
     for (size_t t = 0; t < tracks.size(); ++t) {
       Followed& f = tracks[t];
       if (!track_done[t]) {
-        if (++f.missed > o.coast || !walkable(pred[t])) continue;
+        if (++f.missed > coast_frames || !walkable(pred[t])) continue;
         f.pixel = pred_px[t];
         f.x = pred[t];
         f.coasted.emplace_back(frame, f.x);

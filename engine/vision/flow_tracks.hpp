@@ -40,7 +40,7 @@ TrajectorySet flow_tracks(const VideoFlow& vf, const Geometry& venue, const Flow
 // response of a difference of Gaussians above `contrast` times its robust spread over the
 // frame, the largest within 1.8 body radii); each track's next position is predicted by the
 // optical flow at it, and the nearest unclaimed detection within `gate` metres continues it.
-// A track missing its detection coasts on the flow for up to `coast` frames, then ends; a
+// A track missing its detection coasts on the flow for up to `coast` seconds, then ends; a
 // detection no track claims starts one. Positions are the detections' (ground metres).
 struct DetectOptions {
   // m: the radius of the disc with a body's area seen from above (an ellipse of a shoulder
@@ -48,7 +48,7 @@ struct DetectOptions {
   double body_radius = 0.18;
   double contrast = 4;        // robust standard deviations of the band-pass response
   double gate = 0.35;         // m a detection may lie from a track's predicted position
-  int coast = 3;              // frames a track survives without a detection
+  double coast = 1;           // s a track coasts on the flow without a detection (a person the detector misses a while)
   void check() const;
 };
 
