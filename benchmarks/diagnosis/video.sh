@@ -30,7 +30,7 @@ out=benchmarks/results/diagnosis_video.md
   echo "social-force model kind runs the scene with the effect concealed, the synthetic renderer films it"
   echo "(suite.json \"video\": 40 pixels per metre, 20 degrees tilt, 10 fps, textured heads, sensor noise,"
   echo "blur, Motion JPEG), and the diagnosis gets the scene without the effect and the video with its"
-  echo "calibration. The tracks the video's flow gives (docs/diagnosis.md, \"From video\") are scored against"
+  echo "calibration. The tracks the video gives (detected and followed, docs/diagnosis.md \"From video\") are scored against"
   echo "what was filmed in the last three columns. Errors: RMS position errors (m) of those tracks over 3 s"
   echo "held-out rollouts."
   echo
