@@ -123,7 +123,7 @@ TEST_CASE("diagnosis of a recording with nothing concealed finds nothing", "[dia
   CHECK(rep.at("terms").empty());
 }
 
-TEST_CASE("diagnosis from a rendered video: its people are detected and followed, and a concealed obstacle is found",
+TEST_CASE("diagnosis from a rendered video: its people are detected and followed and a concealed obstacle is found",
           "[diagnosis][vision]") {
   const fs::path dir = fs::path(CROWDMPM_BINARY_DIR) / "tests" / "diagnosis" / "video";
   fs::create_directories(dir);

@@ -462,7 +462,7 @@ DiagnoseJob parse_diagnose_job(const json& request, const std::string& base_dir)
   } else {
     const JsonReader v = r.at("video");
     v.require_object();
-    v.allow_only({"path", "calibration", "scale", "first", "frames", "fps", "method", "smoothing", "tracks", "body_radius", "contrast", "coast", "cell",
+    v.allow_only({"path", "calibration", "scale", "first", "frames", "fps", "method", "smoothing", "tracks", "body_radius", "contrast", "coast", "smooth", "cell",
                   "density", "presence", "seed_speed", "min_speed", "min_moving_share"});
     job.from_video = true;
     VideoSource& src = job.video;
@@ -494,6 +494,7 @@ DiagnoseJob parse_diagnose_job(const json& request, const std::string& base_dir)
     job.detection.body_radius = v.in_range("body_radius", 0.05, 1, job.detection.body_radius);
     job.detection.contrast = v.in_range("contrast", 0.1, 100, job.detection.contrast);
     job.detection.coast = v.in_range("coast", 0, 60, job.detection.coast);
+    job.detection.smooth = v.in_range("smooth", 0, 10, job.detection.smooth);
     if (job.detect) {
       job.recording = detected_tracks(src, job.scenario.geo, job.detection);
     } else {

@@ -213,6 +213,31 @@ struct Followed {
   std::vector<std::pair<long, Vec2>> coasted;  // frames predicted while missed (ground)
 };
 
+// Each track's positions replaced by their mean over the frames within `half` of each (fewer at
+// its ends, the same number on both sides): a detection's place on a body jitters from frame to
+// frame by a few centimetres, which at 10 fps is a speed error of tenths of a metre per second.
+void smooth_tracks(TrajectorySet& t, long half) {
+  if (half <= 0) return;
+  std::unordered_map<long, std::vector<size_t>> by_id;
+  for (size_t i = 0; i < t.points.size(); ++i) by_id[t.points[i].id].push_back(i);
+  std::vector<TrackPoint> smoothed = t.points;
+  for (auto& [id, idx] : by_id) {
+    std::sort(idx.begin(), idx.end(), [&](size_t a, size_t b) { return t.points[a].frame < t.points[b].frame; });
+    const long n = static_cast<long>(idx.size());
+    for (long k = 0; k < n; ++k) {
+      const long h = std::min({half, k, n - 1 - k});
+      double x = 0, y = 0;
+      for (long j = k - h; j <= k + h; ++j) {
+        x += t.points[idx[static_cast<size_t>(j)]].x;
+        y += t.points[idx[static_cast<size_t>(j)]].y;
+      }
+      smoothed[idx[static_cast<size_t>(k)]].x = x / static_cast<double>(2 * h + 1);
+      smoothed[idx[static_cast<size_t>(k)]].y = y / static_cast<double>(2 * h + 1);
+    }
+  }
+  t.points = std::move(smoothed);
+}
+
 }  // namespace
 
 TrajectorySet detected_tracks(const VideoSource& src, const Geometry& venue, const DetectOptions& o) {
@@ -290,6 +315,7 @@ TrajectorySet detected_tracks(const VideoSource& src, const Geometry& venue, con
   Grid coarse = grid_covering(cal, src.video.roi, info.width, info.height, 2.0);
   const VideoFlow vf = extract_video_flow(src.path, src.video, src.flow, cal, coarse, src.field, nullptr, hook);
   out.framerate = vf.info.fps;
+  smooth_tracks(out, std::lround(o.smooth * info.fps / 2));
   if (out.points.empty()) throw Error(src.path + ": nobody was found in the video (no blob of " + format_number(o.body_radius) +
                                       " m stood out of the floor); check the calibration, or use the flow's tracks");
   out.sort_checked();

@@ -242,10 +242,12 @@ CMPM_API cmpm_Status cmpm_PredictRecording(const char* request_json, const char*
  *    ("flow", for crowds too dense to see each person):
  *    "video": {"path": PATH, "calibration": PATH | "scale": metres per pixel, "first": 0,
  *              "frames": 0 (to the end), "fps": 0 (the container's), "method": "farneback",
- *              "smoothing": 0, "tracks": "detect", "body_radius": 0.18 (m), "contrast": 4
- *              (robust sd of the blob response), "coast": 1 (s), "cell": 0.25 (m), "min_speed": 0.2 (m/s:
- *              slower flow counts as still), "min_moving_share": 0.3, "density": 1.5
- *              (persons/m2 of flow tracks), "seed_speed": 0.3 (m/s), "presence": 2 (s)},
+ *              "smoothing": 0, "tracks": "detect",
+ *              detection: "body_radius": 0.18 (m), "contrast": 4 (robust sd of the blob
+ *              response), "coast": 1 (s), "smooth": 0.4 (s);
+ *              flow tracks: "cell": 0.25 (m), "min_speed": 0.2 (m/s: slower flow counts as
+ *              still), "min_moving_share": 0.3, "density": 1.5 (persons/m2), "seed_speed": 0.3
+ *              (m/s), "presence": 2 (s)},
  *    "options": {"train_share": 0.6, "window": 3, "stride": 1, "horizon": 1.5,
  *                "residual_stride": 0.5, "cell": 0.5, "time_bin": 5, "z_threshold": 3.5,
  *                "source_margin": 2, "null_replicates": 6, "alpha": 0.01, "max_terms": 3,
