@@ -163,10 +163,18 @@ for f in report.json summary.txt residual_before.png residual_after.png scenario
 done
 contains "diagnose" "wrote $work/diag/report.json"
 check "diagnose without --observed" 2 "$cli" diagnose --scenario "$src/scenarios/bottleneck.json" --out "$work/diag2"
-contains "diagnose without --observed" "diagnose needs --scenario and --observed"
+contains "diagnose without --observed" "diagnose needs --scenario and a recording: --observed TRAJECTORIES or --video V"
 check "diagnose unknown candidate" 1 "$cli" diagnose --scenario "$src/scenarios/bottleneck.json" --observed "$work/sim/trajectories.txt" \
   --out "$work/diag2" --candidates ghost
 contains "diagnose unknown candidate" 'options.candidates[0]: unknown candidate "ghost"'
+check "diagnose --video without calibration" 2 "$cli" diagnose --scenario "$src/scenarios/bottleneck.json" --video "$work/sim/particles.mp4" \
+  --out "$work/diag2"
+contains "diagnose --video without calibration" "diagnose --video needs --calibration CAL or --scale S"
+# The rendered 5 s video goes through detection and tracking, then is too short to split.
+check "diagnose --video too short" 1 "$cli" diagnose --scenario "$src/scenarios/video_exit.json" --video "$work/video/video.avi" \
+  --calibration "$work/video/calibration.json" --out "$work/diag2" --threads 1
+contains "diagnose --video too short" "tracks, 4.9 s at 10 fps"
+contains "diagnose --video too short" "video.avi: too short to diagnose"
 check "diagnose bad options" 2 "$cli" diagnose --scenario "$src/scenarios/bottleneck.json" --observed "$work/sim/trajectories.txt" \
   --out "$work/diag2" --options '{"cell": '
 contains "diagnose bad options" "--options must be a JSON object"
