@@ -56,7 +56,7 @@ const char* kUsage =
     "  render-video SCENARIO --out DIR [options]\n"
     "                      film a simulated crowd through a tilted camera (synthetic video\n"
     "                      with its calibration and true grid velocity)\n"
-    "  diagnose --scenario S (--observed T | --video V --calibration C) --out DIR [--model M] [options]\n"
+    "  diagnose --scenario S (--observed T | --video V (--calibration C | --scale S)) --out DIR [options]\n"
     "                      find physics the scenario lacks: locate where the fitted model\n"
     "                      and the recording disagree, fit candidate terms, keep those that\n"
     "                      lower the held-out error (report.json, pictures, summary.txt)\n"
@@ -957,7 +957,7 @@ int cmd_diagnose(const Args& a) {
     if (a.method_given) jv["method"] = v.flow.method == FlowOptions::Method::Dis ? "dis" : "farneback";
     if (!v.calibration.empty()) jv["calibration"] = v.calibration;
     else jv["scale"] = v.scale;
-    if (a.density_given) jv["density"] = a.video_learn.density;
+    if (a.density_given) usage_error("diagnose --video follows detected people; --density is for flow tracks (\"tracks\": \"flow\" in a request)");
     if (!v.video.roi.empty()) usage_error("diagnose --video reads the whole frame (--roi is not supported here)");
     request["video"] = jv;
   } else {

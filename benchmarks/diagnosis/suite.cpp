@@ -164,7 +164,6 @@ int main(int argc, char** argv) {
           // What was filmed, as exact tracks (to compare the tracks the flow gives with).
           write_noisy_recording(truth_def, generator, 0, 0, threads, (dir / "filmed.txt").string());
           json v = {{"path", (dir / "video.avi").string()}, {"calibration", (dir / "calibration.json").string()}};
-          if (vc.contains("track_density")) v["density"] = vc.at("track_density");
           request["video"] = v;
         } else {
           write_noisy_recording(truth_def, generator, noise, 1000 + ci * 10 + static_cast<uint64_t>(noise * 1000), threads,

@@ -471,8 +471,8 @@ DiagnoseJob parse_diagnose_job(const json& request, const std::string& base_dir)
     if (v.has("calibration") == v.has("scale")) v.fail("a video needs \"calibration\" (a calibration file) or \"scale\" (metres per pixel), one of them");
     if (v.has("calibration")) src.calibration = resolve_path(base_dir, v.string("calibration", std::nullopt));
     if (v.has("scale")) src.scale = v.in_range("scale", 1e-6, 100, std::nullopt);
-    src.video.first = static_cast<long>(v.in_range("first", 0, 1e9, 0));
-    src.video.count = static_cast<long>(v.in_range("frames", 0, 1e9, 0));
+    src.video.first = v.integer("first", 0, 1000000000, 0);
+    src.video.count = v.integer("frames", 0, 1000000000, 0);
     if (src.video.count == 1) v.at("frames").fail("a video needs at least 2 frames for a flow field");
     src.video.fps = v.in_range("fps", 0, 1000, 0);
     // Farneback and a walking crowd's 0.2 m/s by default: against the filmed tracks of the rendered
@@ -491,6 +491,11 @@ DiagnoseJob parse_diagnose_job(const json& request, const std::string& base_dir)
     // anything smaller than a metre that the crowd walks round.
     src.cell = v.in_range("cell", 0.05, 2, 0.25);
     job.detect = v.one_of("tracks", {"detect", "flow"}, std::string("detect")) == "detect";
+    // Keys of the other method would be ignored: name them.
+    for (const char* k : job.detect ? std::vector<const char*>{"cell", "density", "presence", "seed_speed", "min_speed", "min_moving_share"}
+                                    : std::vector<const char*>{"body_radius", "contrast", "coast", "smooth"})
+      if (v.has(k)) v.fail_at(k, std::string("applies to \"tracks\": \"") + (job.detect ? "flow" : "detect") + "\", not to the \"" +
+                                     (job.detect ? "detect" : "flow") + "\" tracks asked for");
     job.detection.body_radius = v.in_range("body_radius", 0.05, 1, job.detection.body_radius);
     job.detection.contrast = v.in_range("contrast", 0.1, 100, job.detection.contrast);
     job.detection.coast = v.in_range("coast", 0, 60, job.detection.coast);
@@ -937,7 +942,7 @@ void write_diagnosis(const DiagnoseJob& job, const DiagnosisResult& res, const s
   if (job.from_video) {
     const std::string path = (fs::path(out_dir) / "video_tracks.txt").string();
     std::ofstream f(path);
-    f << "# framerate: " << job.recording.framerate << "\n# unit: m\n# "
+    f << "# framerate: " << format_number(job.recording.framerate) << "\n# unit: m\n# "
       << (job.detect ? "people detected in " + job.video.path + " and followed by its optical flow"
                      : "tracks carried by the flow of " + job.video.path + " at " + num(job.tracks.density, 2) + " persons/m2")
       << "\n";

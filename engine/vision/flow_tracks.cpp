@@ -68,9 +68,11 @@ class Buckets {
 
  private:
   long cell_of(double v) const { return static_cast<long>(std::floor(v / cell_)); }
-  static long long key(long i, long j) { return (static_cast<long long>(i) << 32) ^ static_cast<long long>(static_cast<unsigned>(j)); }
+  static unsigned long long key(long i, long j) {
+    return (static_cast<unsigned long long>(i) << 32) ^ static_cast<unsigned long long>(static_cast<unsigned>(j));
+  }
   double cell_;
-  std::unordered_map<long long, std::vector<Vec2>> map_;
+  std::unordered_map<unsigned long long, std::vector<Vec2>> map_;
 };
 
 struct Track {
@@ -135,9 +137,10 @@ TrajectorySet flow_tracks(const VideoFlow& vf, const Geometry& venue, const Flow
       } else {
         if (++t.still > presence_frames) continue;
       }
+      if (!t.x.allFinite()) continue;
       const double d = venue.sdf(t.x);
       if (d < o.clearance) t.x += (o.clearance - d) * venue.normal(t.x);
-      if (!venue.in_domain(t.x) || venue.exit_at(t.x) >= 0 || !covered_at(f, t.x) || !t.x.allFinite()) continue;
+      if (!venue.in_domain(t.x) || venue.exit_at(t.x) >= 0 || !covered_at(f, t.x)) continue;
       moved.push_back(t);
     }
     // Two tracks closer than half a spacing are one: the younger (larger id) ends.
@@ -161,9 +164,10 @@ TrajectorySet flow_tracks(const VideoFlow& vf, const Geometry& venue, const Flow
 
 void DetectOptions::check() const {
   if (!(body_radius >= 0.05 && body_radius <= 1)) throw Error("detection: body_radius must be in [0.05, 1] m, got " + format_number(body_radius));
-  if (!(contrast > 0 && contrast <= 100)) throw Error("detection: contrast must be in (0, 100], got " + format_number(contrast));
+  if (!(contrast >= 0.1 && contrast <= 100)) throw Error("detection: contrast must be in [0.1, 100], got " + format_number(contrast));
   if (!(gate > 0 && gate <= 5)) throw Error("detection: gate must be in (0, 5] m, got " + format_number(gate));
   if (!(coast >= 0 && coast <= 60)) throw Error("detection: coast must be in [0, 60] s, got " + format_number(coast));
+  if (!(smooth >= 0 && smooth <= 10)) throw Error("detection: smooth must be in [0, 10] s, got " + format_number(smooth));
 }
 
 namespace {
@@ -186,7 +190,8 @@ std::vector<Vec2> find_blobs(const cv::Mat& grey, double r, double contrast) {
   if (v.empty()) return {};
   std::nth_element(v.begin(), v.begin() + static_cast<long>(v.size() / 2), v.end());
   const double sd = v[v.size() / 2] / 0.6745;
-  const double threshold = contrast * std::max(sd, 1e-3);
+  // (A frame mostly flat, masked or letterboxed has a median near 0: a tenth of a grey level at least.)
+  const double threshold = contrast * std::max(sd, 0.1);
   // Two people stand at least a body's width apart: one detection within 1.8 body radii.
   const int k = std::max(1, static_cast<int>(std::lround(1.8 * r)));
   cv::Mat peak;
@@ -196,7 +201,7 @@ std::vector<Vec2> find_blobs(const cv::Mat& grey, double r, double contrast) {
     for (int x = 0; x < d.cols; ++x) {
       const float a = d.at<float>(y, x);
       if (a >= threshold && a >= peak.at<float>(y, x)) {
-        // One detection per plateau: skip a maximum equal to one already taken close by.
+        // One detection per plateau of equal maxima: the first in scan order within k is kept.
         bool taken = false;
         for (auto it = out.rbegin(); it != out.rend() && y - it->y() <= k; ++it)
           if (std::abs(it->x() - x) <= k && std::abs(it->y() - y) <= k) { taken = true; break; }

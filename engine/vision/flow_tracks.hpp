@@ -36,7 +36,7 @@ TrajectorySet flow_tracks(const VideoFlow& vf, const Geometry& venue, const Flow
 
 // Tracks of the people a video shows, for a crowd sparse enough to see each person: every
 // frame, people are found as blobs of body size (DetectOptions::body_radius, converted to pixels
-// by the calibration at each point) that stand out of the floor, bright or dark (the absolute
+// by the calibration at the middle of the view) that stand out of the floor, bright or dark (the absolute
 // response of a difference of Gaussians above `contrast` times its robust spread over the
 // frame, the largest within 1.8 body radii); each track's next position is predicted by the
 // optical flow at it, and the nearest unclaimed detection within `gate` metres continues it.
@@ -44,8 +44,8 @@ TrajectorySet flow_tracks(const VideoFlow& vf, const Geometry& venue, const Flow
 // detection no track claims starts one. Positions are the detections' (ground metres), each
 // averaged with its track's over `smooth` seconds centred on it.
 struct DetectOptions {
-  // m: the radius of the disc with a body's area seen from above (an ellipse of a shoulder
-  // breadth of 0.45 m and a chest depth of 0.25 m: 0.17 m).
+  // m: about the radius of the disc with a body's area seen from above (an ellipse of a
+  // shoulder breadth of 0.45 m and a chest depth of 0.25 m: 0.17 m).
   double body_radius = 0.18;
   double contrast = 4;        // robust standard deviations of the band-pass response
   double gate = 0.35;         // m a detection may lie from a track's predicted position
@@ -55,7 +55,8 @@ struct DetectOptions {
 };
 
 // Reads the video of `src` (its flow options; the calibration it names), detects and tracks
-// its people within the venue (out of solids and exits). Throws Error naming the file when it
+// its people within the venue's domain and out of its solids (the frame `first` itself only
+// starts the flow: detection begins with the frame after it). Throws Error naming the file when it
 // cannot be read or nobody is found.
 TrajectorySet detected_tracks(const VideoSource& src, const Geometry& venue, const DetectOptions& o);
 

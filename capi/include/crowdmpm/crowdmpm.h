@@ -241,7 +241,7 @@ CMPM_API cmpm_Status cmpm_PredictRecording(const char* request_json, const char*
  *    optical flow ("tracks": "detect"), or points laid where its flow moves and carried by it
  *    ("flow", for crowds too dense to see each person):
  *    "video": {"path": PATH, "calibration": PATH | "scale": metres per pixel, "first": 0,
- *              "frames": 0 (to the end), "fps": 0 (the container's), "method": "farneback",
+ *              "frames": 0 (to the end), "fps": 0 (the container's), "method": "farneback" | "dis",
  *              "smoothing": 0, "tracks": "detect",
  *              detection: "body_radius": 0.18 (m), "contrast": 4 (robust sd of the blob
  *              response), "coast": 1 (s), "smooth": 0.4 (s);
