@@ -447,6 +447,60 @@ double effective_sample_size(const std::vector<long>& windows, double stride, do
   return n;
 }
 
+namespace {
+
+// A request's "video": its source, its track method and options, and the tracks it gives as
+// the job's recording.
+void read_video_recording(const JsonReader& v, const std::string& base_dir, const InputPolicy& input, DiagnoseJob& job) {
+  v.require_object();
+  v.allow_only({"path", "calibration", "scale", "first", "frames", "fps", "method", "smoothing", "tracks", "body_radius", "contrast", "coast", "smooth", "cell",
+                "density", "presence", "seed_speed", "min_speed", "min_moving_share"});
+  job.from_video = true;
+  VideoSource& src = job.video;
+  src.path = resolve_path(base_dir, v.string("path", std::nullopt));
+  src.video.input = input;
+  if (v.has("calibration") == v.has("scale")) v.fail("a video needs \"calibration\" (a calibration file) or \"scale\" (metres per pixel), one of them");
+  if (v.has("calibration")) src.calibration = resolve_path(base_dir, v.string("calibration", std::nullopt));
+  if (v.has("scale")) src.scale = v.in_range("scale", 1e-6, 100, std::nullopt);
+  src.video.first = v.integer("first", 0, 1000000000, 0);
+  src.video.count = v.integer("frames", 0, 1000000000, 0);
+  if (src.video.count == 1) v.at("frames").fail("a video needs at least 2 frames for a flow field");
+  src.video.fps = v.in_range("fps", 0, 1000, 0);
+  // Farneback and a walking crowd's 0.2 m/s by default: against the filmed tracks of the rendered
+  // suite (docs/diagnosis.md "From video") DIS saw walkers 35% slow and Farneback 12%, and
+  // slower flow was mostly the halo flow smooths round each walker.
+  src.flow.method = flow_method(v.one_of("method", {"dis", "farneback"}, std::string("farneback")));
+  src.flow.smoothing = v.in_range("smoothing", 0, 0.99, 0);
+  job.tracks.density = v.in_range("density", 0.01, 12, job.tracks.density);
+  job.tracks.presence = v.in_range("presence", 0, 600, job.tracks.presence);
+  job.tracks.seed_speed = v.in_range("seed_speed", 0, 10, job.tracks.seed_speed);
+  src.field.min_speed = v.in_range("min_speed", 0, 10, 0.2);
+  src.field.min_moving_share = v.in_range("min_moving_share", 0, 1, src.field.min_moving_share);
+  job.trajectories_path = src.path;
+  // The tracks are carried on a grid of their own, finer than the simulation's, covering the
+  // whole view: a field splatted at the simulation's spacing (0.5 m) carries them through
+  // anything smaller than a metre that the crowd walks round.
+  src.cell = v.in_range("cell", 0.05, 2, 0.25);
+  job.detect = v.one_of("tracks", {"detect", "flow"}, std::string("detect")) == "detect";
+  // Keys of the other method would be ignored: name them.
+  for (const char* k : job.detect ? std::vector<const char*>{"cell", "density", "presence", "seed_speed", "min_speed", "min_moving_share"}
+                                  : std::vector<const char*>{"body_radius", "contrast", "coast", "smooth"})
+    if (v.has(k)) v.fail_at(k, std::string("applies to \"tracks\": \"") + (job.detect ? "flow" : "detect") + "\", not to the \"" +
+                                   (job.detect ? "detect" : "flow") + "\" tracks asked for");
+  job.detection.body_radius = v.in_range("body_radius", 0.05, 1, job.detection.body_radius);
+  job.detection.contrast = v.in_range("contrast", 0.1, 100, job.detection.contrast);
+  job.detection.coast = v.in_range("coast", 0, 60, job.detection.coast);
+  job.detection.smooth = v.in_range("smooth", 0, 10, job.detection.smooth);
+  if (job.detect) {
+    job.recording = detected_tracks(src, job.scenario.geo, job.detection);
+  } else {
+    const VideoFields vf = load_video_fields(src, nullptr);
+    job.recording = flow_tracks(vf.flow, job.scenario.geo, job.tracks, src.path);
+  }
+}
+
+}  // namespace
+
 DiagnoseJob parse_diagnose_job(const json& request, const std::string& base_dir) {
   JsonReader r(request, "");
   r.require_object();
@@ -460,52 +514,7 @@ DiagnoseJob parse_diagnose_job(const json& request, const std::string& base_dir)
     job.trajectories_path = resolve_path(base_dir, r.string("trajectories", std::nullopt));
     job.recording = TrajectorySet::read(job.trajectories_path, 0, input);
   } else {
-    const JsonReader v = r.at("video");
-    v.require_object();
-    v.allow_only({"path", "calibration", "scale", "first", "frames", "fps", "method", "smoothing", "tracks", "body_radius", "contrast", "coast", "smooth", "cell",
-                  "density", "presence", "seed_speed", "min_speed", "min_moving_share"});
-    job.from_video = true;
-    VideoSource& src = job.video;
-    src.path = resolve_path(base_dir, v.string("path", std::nullopt));
-    src.video.input = input;
-    if (v.has("calibration") == v.has("scale")) v.fail("a video needs \"calibration\" (a calibration file) or \"scale\" (metres per pixel), one of them");
-    if (v.has("calibration")) src.calibration = resolve_path(base_dir, v.string("calibration", std::nullopt));
-    if (v.has("scale")) src.scale = v.in_range("scale", 1e-6, 100, std::nullopt);
-    src.video.first = v.integer("first", 0, 1000000000, 0);
-    src.video.count = v.integer("frames", 0, 1000000000, 0);
-    if (src.video.count == 1) v.at("frames").fail("a video needs at least 2 frames for a flow field");
-    src.video.fps = v.in_range("fps", 0, 1000, 0);
-    // Farneback and a walking crowd's 0.2 m/s by default: against the filmed tracks of the rendered
-    // suite (docs/diagnosis.md "From video") DIS saw walkers 35% slow and Farneback 12%, and
-    // slower flow was mostly the halo flow smooths round each walker.
-    src.flow.method = flow_method(v.one_of("method", {"dis", "farneback"}, std::string("farneback")));
-    src.flow.smoothing = v.in_range("smoothing", 0, 0.99, 0);
-    job.tracks.density = v.in_range("density", 0.01, 12, job.tracks.density);
-    job.tracks.presence = v.in_range("presence", 0, 600, job.tracks.presence);
-    job.tracks.seed_speed = v.in_range("seed_speed", 0, 10, job.tracks.seed_speed);
-    src.field.min_speed = v.in_range("min_speed", 0, 10, 0.2);
-    src.field.min_moving_share = v.in_range("min_moving_share", 0, 1, src.field.min_moving_share);
-    job.trajectories_path = src.path;
-    // The tracks are carried on a grid of their own, finer than the simulation's, covering the
-    // whole view: a field splatted at the simulation's spacing (0.5 m) carries them through
-    // anything smaller than a metre that the crowd walks round.
-    src.cell = v.in_range("cell", 0.05, 2, 0.25);
-    job.detect = v.one_of("tracks", {"detect", "flow"}, std::string("detect")) == "detect";
-    // Keys of the other method would be ignored: name them.
-    for (const char* k : job.detect ? std::vector<const char*>{"cell", "density", "presence", "seed_speed", "min_speed", "min_moving_share"}
-                                    : std::vector<const char*>{"body_radius", "contrast", "coast", "smooth"})
-      if (v.has(k)) v.fail_at(k, std::string("applies to \"tracks\": \"") + (job.detect ? "flow" : "detect") + "\", not to the \"" +
-                                     (job.detect ? "detect" : "flow") + "\" tracks asked for");
-    job.detection.body_radius = v.in_range("body_radius", 0.05, 1, job.detection.body_radius);
-    job.detection.contrast = v.in_range("contrast", 0.1, 100, job.detection.contrast);
-    job.detection.coast = v.in_range("coast", 0, 60, job.detection.coast);
-    job.detection.smooth = v.in_range("smooth", 0, 10, job.detection.smooth);
-    if (job.detect) {
-      job.recording = detected_tracks(src, job.scenario.geo, job.detection);
-    } else {
-      const VideoFields vf = load_video_fields(src, nullptr);
-      job.recording = flow_tracks(vf.flow, job.scenario.geo, job.tracks, src.path);
-    }
+    read_video_recording(r.at("video"), base_dir, input, job);
   }
   job.model = r.has("model") ? Model::load(resolve_path(base_dir, r.string("model", std::nullopt)), input)
                              : job.scenario.model_or_default();
@@ -940,18 +949,11 @@ void write_diagnosis(const DiagnoseJob& job, const DiagnosisResult& res, const s
   save_json_file(sc, (fs::path(out_dir) / "scenario.json").string());
   save_json_file(r.model.to_json(), (fs::path(out_dir) / "model.json").string());
   if (job.from_video) {
-    const std::string path = (fs::path(out_dir) / "video_tracks.txt").string();
-    std::ofstream f(path);
-    f << "# framerate: " << format_number(job.recording.framerate) << "\n# unit: m\n# "
-      << (job.detect ? "people detected in " + job.video.path + " and followed by its optical flow"
-                     : "tracks carried by the flow of " + job.video.path + " at " + num(job.tracks.density, 2) + " persons/m2")
-      << "\n";
-    char line[96];
-    for (const TrackPoint& p : job.recording.points) {
-      std::snprintf(line, sizeof line, "%ld %ld %.4f %.4f\n", p.id, p.frame, p.x, p.y);
-      f << line;
-    }
-    if (!f) throw Error(path + ": cannot write");
+    TrajectoryWriter w((fs::path(out_dir) / "video_tracks.txt").string(), job.recording.framerate,
+                       job.detect ? "people detected in " + job.video.path + " and followed by its optical flow"
+                                  : "tracks carried by the flow of " + job.video.path + " at " + num(job.tracks.density, 2) + " persons/m2");
+    w.write_points(job.recording);
+    w.close();
   }
 }
 

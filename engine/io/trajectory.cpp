@@ -169,6 +169,10 @@ void TrajectoryWriter::write_frame(const World& w, long frame) {
     std::fprintf(f_, "%llu %ld %.5f %.5f 0\n", static_cast<unsigned long long>(w.id[p]), frame, w.x[p].x(), w.x[p].y());
 }
 
+void TrajectoryWriter::write_points(const TrajectorySet& t) {
+  for (const TrackPoint& p : t.points) std::fprintf(f_, "%ld %ld %.5f %.5f 0\n", p.id, p.frame, p.x, p.y);
+}
+
 void TrajectoryWriter::close() {
   if (f_ && std::fclose(f_) != 0) {
     f_ = nullptr;

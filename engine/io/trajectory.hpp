@@ -52,7 +52,8 @@ class TrajectorySet {
   long skip_gap(long f, long stride) const;
 };
 
-// Writes frames of a world as "id frame x y z" rows under a "# framerate:" header (metres).
+// Writes frames of a world (or a recording's points) as "id frame x y z" rows under a
+// "# framerate:" header (metres).
 class TrajectoryWriter {
  public:
   TrajectoryWriter(const std::string& path, double framerate, const std::string& comment);
@@ -60,6 +61,8 @@ class TrajectoryWriter {
   TrajectoryWriter(const TrajectoryWriter&) = delete;
   TrajectoryWriter& operator=(const TrajectoryWriter&) = delete;
   void write_frame(const World& w, long frame);
+  // Every point of a recording, in its order (tracks made elsewhere: from video, say).
+  void write_points(const TrajectorySet& t);
   void close();
 
  private:

@@ -262,8 +262,8 @@ TrajectorySet detected_tracks(const VideoSource& src, const Geometry& venue, con
   std::vector<Followed> tracks;
   long next_id = 1;
   auto walkable = [&](const Vec2& x) { return x.allFinite() && venue.in_domain(x) && venue.sdf(x) >= 0; };
-  auto hook = [&](size_t field, const cv::Mat& grey, const cv::Mat& flow) {
-    const long frame = src.video.first + static_cast<long>(field) + 1;
+  // Each frame after the first, with the flow from the frame before it.
+  auto follow = [&](long frame, const cv::Mat& grey, const cv::Mat& flow) {
     std::vector<Vec2> px, ground;
     for (const Vec2& p : find_blobs(grey, r_px, o.contrast)) {
       const Vec2 x = cal.to_world(p);
@@ -317,9 +317,17 @@ TrajectorySet detected_tracks(const VideoSource& src, const Geometry& venue, con
       }
     tracks = std::move(kept);
   };
-  Grid coarse = grid_covering(cal, src.video.roi, info.width, info.height, 2.0);
-  const VideoFlow vf = extract_video_flow(src.path, src.video, src.flow, cal, coarse, src.field, nullptr, hook);
-  out.framerate = vf.info.fps;
+  VideoReader reader(src.path, src.video);
+  FlowEstimator estimator(src.flow);
+  cv::Mat grey, flow;
+  long flows = 0;
+  while (reader.next(grey))
+    if (estimator.push(grey, flow)) {
+      follow(reader.frame(), grey, flow);
+      ++flows;
+    }
+  if (flows == 0) throw Error(src.path + ": fewer than two frames in the range; flow needs two");
+  out.framerate = reader.info().fps;
   smooth_tracks(out, std::lround(o.smooth * info.fps / 2));
   if (out.points.empty()) throw Error(src.path + ": nobody was found in the video (no blob of " + format_number(o.body_radius) +
                                       " m stood out of the floor); check the calibration, or use the flow's tracks");
