@@ -101,11 +101,22 @@ TEST_CASE("diagnosis finds a concealed obstacle and writes the documented report
   }
   REQUIRE(rep.at("terms").size() == 1);
   CHECK(rep.at("terms")[0].at("type") == "obstacle");
+  // Everyone walked at the recording's typical free speed: people drawn around 1.3 m/s, sd 0.15.
+  const json& ds = rep.at("desired_speed");
+  CHECK(ds.at("mode") == "recording");
+  CHECK(ds.at("speed").get<double>() == Approx(1.3).margin(0.15));
+  CHECK(ds.at("spread").get<double>() > 0.03);
+  CHECK(ds.at("spread").get<double>() < 0.3);
+  CHECK(ds.at("people").get<long>() > 20);
   for (const char* f : {"residual_before.png", "residual_after.png", "summary.txt", "scenario.json", "model.json"})
     CHECK(fs::file_size(out / f) > 0);
   // The venue with the term is a scenario the simulator runs.
   const ScenarioDef fitted = ScenarioDef::load((out / "scenario.json").string());
   CHECK(fitted.terms.size() == 1);
+  // ... its crowd walking at the speeds read from the recording, which v0_scale was fitted to.
+  REQUIRE(!fitted.groups.empty());
+  CHECK(fitted.groups[0].desired_speed == Approx(ds.at("speed").get<double>()));
+  CHECK(fitted.groups[0].speed_sd == Approx(ds.at("spread").get<double>()));
   Simulation sim(fitted, fitted.model_or_default(), 1);
   sim.run_steps(10);
 }
@@ -229,6 +240,7 @@ TEST_CASE("diagnosis requests name what is wrong", "[diagnosis]") {
   fails_with({{"scenario", belief}, {"trajectories", rec}, {"options", {{"train_share", 2}}}}, "train_share");
   fails_with({{"scenario", belief}, {"trajectories", rec}, {"options", {{"params", {"nonsense"}}}}}, "nonsense");
   fails_with({{"scenario", belief}, {"trajectories", rec}, {"options", {{"optimizer", "newton"}}}}, "optimizer");
+  fails_with({{"scenario", belief}, {"trajectories", rec}, {"options", {{"desired_speed", "typical"}}}}, "desired_speed");
   fails_with({{"scenario", belief}, {"trajectories", rec}, {"options", {{"baseline_optimizer", "sgd"}}}}, "baseline_optimizer");
   {
     const DiagnoseJob job = parse_diagnose_job(

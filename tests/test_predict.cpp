@@ -87,6 +87,28 @@ TEST_CASE("free speeds: the 90th percentile of a person's walking speed along th
   CHECK(s.free_speed[0] == Approx(1.5));
 }
 
+TEST_CASE("free speed distribution: the median and robust spread of the people's free speeds up to a frame", "[predict]") {
+  // Five people at 1.0, 1.2, 1.3, 1.4 and 3.0 m/s (the last a tracking glitch the median and
+  // the absolute deviations ignore), each seen for 3 s; a sixth seen only after frame 40.
+  std::ostringstream text;
+  text << "# framerate: 10\n";
+  const double speeds[] = {1.0, 1.2, 1.3, 1.4, 3.0};
+  for (int f = 0; f <= 60; ++f) {
+    for (int p = 0; p < 5; ++p)
+      if (f <= 30) text << p + 1 << " " << f << " " << speeds[p] * 0.1 * f << " " << p << "\n";
+    if (f > 40) text << "6 " << f << " " << 0.5 * 0.1 * f << " 9\n";
+  }
+  const TrajectorySet t = TrajectorySet::parse(text.str(), "five");
+  const SpeedDistribution d = free_speed_distribution(t, 1.0, 30);
+  CHECK(d.people == 5);
+  CHECK(d.median == Approx(1.3));
+  CHECK(d.sd == Approx(1.4826 * 0.1));  // deviations 0.3 0.1 0 0.1 1.7: their median 0.1
+  const SpeedDistribution all = free_speed_distribution(t, 1.0, 60);
+  CHECK(all.people == 6);
+  CHECK(all.median == Approx(1.3));  // the upper median of 0.5 1.0 1.2 1.3 1.4 3.0
+  CHECK_THROWS_WITH(free_speed_distribution(t, 1.0, 5), Catch::Matchers::Contains("nobody is seen walking for 1 s"));
+}
+
 TEST_CASE("free speeds under a density-speed law: speeds divided by the law's factor at the density walked at", "[predict]") {
   // Person 1 walks 0.5 m/s in +x through a block of 12 people standing 0.5 m apart (about 4
   // persons/m^2 around them); person 20 walks 1.2 m/s alone, 30 m away.

@@ -546,7 +546,8 @@ DiagnoseJob parse_diagnose_job(const json& request, const std::string& base_dir)
     o.threads = static_cast<int>(op->in_range("threads", 1, 256, o.threads));
     o.residual.threads = o.threads;
     o.seed = static_cast<uint64_t>(op->in_range("seed", 0, 9e15, static_cast<double>(o.seed)));
-    const std::string ds = op->one_of("desired_speed", {"scenario", "observed", "free"}, std::string("free"));
+    const std::string ds = op->one_of("desired_speed", {"recording", "scenario", "observed", "free"}, std::string("recording"));
+    o.recording_speed = ds == "recording";
     o.residual.desired_speed = ds == "scenario" ? DesiredSpeed::Scenario : ds == "observed" ? DesiredSpeed::Observed : DesiredSpeed::Free;
     if (auto c = op->get("candidates")) {
       o.candidates.clear();
@@ -578,7 +579,8 @@ DiagnoseJob parse_diagnose_job(const json& request, const std::string& base_dir)
 }
 
 DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& progress) {
-  const DiagnoseOptions& d = job.options;
+  DiagnoseOptions d = job.options;
+  if (d.recording_speed) d.residual.desired_speed = DesiredSpeed::Scenario;  // the groups' speed, set below
   const TrajectorySet& t = job.recording;
   const auto t0 = std::chrono::steady_clock::now();
   auto say = [&](const std::string& s) {
@@ -596,11 +598,24 @@ DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& pr
   say("tracking noise " + num(res.tracking_noise, 3) + " m; " + std::to_string(res.train_windows) + " fitting, " +
       std::to_string(res.heldout_windows) + " held-out windows");
 
+  // The venue as the user believes it; with "desired_speed": "recording", its crowd walking at
+  // the training part's typical free speed.
+  ScenarioDef belief = job.scenario;
+  if (d.recording_speed) {
+    res.free_speed = free_speed_distribution(t, d.residual.speed_window, sp.train_to, &job.model.params);
+    for (GroupDef& g : belief.groups) {
+      g.desired_speed = g.speed_min = g.speed_max = res.free_speed.median;
+      g.speed_sd = 0;
+    }
+    say("desired speed " + num(res.free_speed.median, 2) + " m/s: the median free speed of " +
+        std::to_string(res.free_speed.people) + " people in the training part (spread " + num(res.free_speed.sd, 2) + " m/s)");
+  }
+
   // 1. The baseline: the user's venue and model, its material refitted on the training part.
   Model model = job.model;
-  std::vector<Term> terms = job.scenario.terms;
+  std::vector<Term> terms = belief.terms;
   if (!d.params.empty()) {
-    const FitResult b = fit(job.scenario, terms, model, sp, d, d.baseline_lbfgs);
+    const FitResult b = fit(belief, terms, model, sp, d, d.baseline_lbfgs);
     if (!b.ok) throw Error("diagnosis: the baseline could not be fitted: " + b.error);
     model = b.model;
     terms = b.terms;
@@ -612,14 +627,14 @@ DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& pr
   const Membership everyone = members(sp.heldout, Reach{});
   // The fitted baseline's held-out errors: what every round's best term is compared with first,
   // and the "before" of the report.
-  const std::vector<WindowErrors> baseline_err = rollout_errors(with_terms(job.scenario, terms), model, sp.heldout, ds, d.threads);
+  const std::vector<WindowErrors> baseline_err = rollout_errors(with_terms(belief, terms), model, sp.heldout, ds, d.threads);
   std::vector<WindowErrors> base_err = baseline_err;
   res.heldout_before = stats_of(base_err, sp.heldout, everyone).rms;
   say("baseline fitted: held-out error " + num(res.heldout_before, 3) + " m" + values_of(model, d.params));
 
   size_t after_terms = 0;  // accepted terms residual_after was made with (0: none made)
   for (int round = 0; round < std::max(1, d.max_terms); ++round) {
-    const ScenarioDef current = with_terms(job.scenario, terms);
+    const ScenarioDef current = with_terms(belief, terms);
     Localisation loc = localise(current, model, t, sp, d, std::max(res.tracking_noise, 0.005), round, true);
     if (round == 0) res.residual_before = loc.map;
     else {
@@ -642,9 +657,9 @@ DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& pr
     std::vector<WindowErrors> refit_err;
     Model refit_model = model;
     {
-      const FitResult again = fit(job.scenario, terms, model, sp, d, d.candidates_lbfgs);
+      const FitResult again = fit(belief, terms, model, sp, d, d.candidates_lbfgs);
       if (again.ok) {
-        refit_err = rollout_errors(with_terms(job.scenario, again.terms), again.model, sp.heldout, ds, d.threads);
+        refit_err = rollout_errors(with_terms(belief, again.terms), again.model, sp.heldout, ds, d.threads);
         refit_model = again.model;
       }
     }
@@ -663,9 +678,9 @@ DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& pr
     // Each significant region's local candidates, then the venue-wide ones once (judged on everyone).
     std::vector<std::pair<const Cluster*, Term>> trials;
     for (const Cluster* c : significant)
-      for (Term& cand : initial_candidates(*c, loc.global_mean, model, job.scenario.geo, types))
+      for (Term& cand : initial_candidates(*c, loc.global_mean, model, belief.geo, types))
         if (!is_global(cand)) trials.emplace_back(c, std::move(cand));
-    for (Term& cand : initial_candidates(*significant.front(), loc.global_mean, model, job.scenario.geo, types))
+    for (Term& cand : initial_candidates(*significant.front(), loc.global_mean, model, belief.geo, types))
       if (is_global(cand)) trials.emplace_back(nullptr, std::move(cand));
     for (auto& [c, cand] : trials) {
       const int region_index = c ? static_cast<int>(c - loc.clusters.data()) +
@@ -677,7 +692,7 @@ DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& pr
       std::vector<Term> trial = terms;
       trial.push_back(cand);
       say("  fitting " + report_type(cand.law) + (c ? " at " + point(c->center) : std::string(" (whole venue)")));
-      FitResult f = fit(job.scenario, trial, model, sp, d, d.candidates_lbfgs);
+      FitResult f = fit(belief, trial, model, sp, d, d.candidates_lbfgs);
       if (!f.ok) {
         h.term = cand;
         h.why = "fit failed: " + f.error;
@@ -693,7 +708,7 @@ DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& pr
       const Membership near = members(sp.heldout, h.judged);
       const ErrorStats base_region = reference(near);
       h.baseline_error = base_region.rms;
-      std::vector<WindowErrors> err = rollout_errors(with_terms(job.scenario, f.terms), f.model, sp.heldout, ds, d.threads);
+      std::vector<WindowErrors> err = rollout_errors(with_terms(belief, f.terms), f.model, sp.heldout, ds, d.threads);
       const ErrorStats region = stats_of(err, sp.heldout, near), global = stats_of(err, sp.heldout, everyone);
       h.heldout_error = region.rms;
       h.heldout_error_global = global.rms;
@@ -703,7 +718,7 @@ DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& pr
       h.score = cmp.score_after;
       h.baseline_score = cmp.score_before;
       const double global_change = global.rms / base_global.rms - 1;
-      std::string why = implausible(h.term, job.scenario.geo);
+      std::string why = implausible(h.term, belief.geo);
       if (!why.empty()) {
       } else if (!(cmp.gain >= d.min_gain)) why = "held-out gain " + num(100 * cmp.gain, 1) + "% below " + num(100 * d.min_gain, 0) + "%";
       else if (!(cmp.z >= d.min_gain_z)) why = "gain " + num(cmp.z, 1) + " standard errors, below " + num(d.min_gain_z, 1);
@@ -733,7 +748,7 @@ DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& pr
   }
   res.model = model;
   if (!res.terms.empty() && after_terms != res.terms.size()) {
-    const ScenarioDef current = with_terms(job.scenario, terms);
+    const ScenarioDef current = with_terms(belief, terms);
     res.residual_after = localise(current, model, t, sp, d, res.tracking_noise, d.max_terms, false).map;
   } else if (res.terms.empty()) {
     res.residual_after = res.residual_before;
@@ -881,6 +896,14 @@ json diagnosis_json(const DiagnoseJob& job, const DiagnosisResult& r) {
     j["params"] = report_params(t);
     terms.push_back(j);
   }
+  json speed = {{"mode", job.options.recording_speed ? "recording" : desired_speed_name(job.options.residual.desired_speed)}};
+  if (job.options.recording_speed) {
+    speed["speed"] = r.free_speed.median;
+    speed["spread"] = r.free_speed.sd;
+    speed["people"] = r.free_speed.people;
+    speed["definition"] = "every person walks at the median free speed (m/s, times the fitted v0_scale) of the training part's people, each person's free speed the 90th percentile of their speed over " +
+                          num(job.options.residual.speed_window, 1) + " s along their track; spread: 1.4826 x the median absolute deviation";
+  }
   return {{"format", "crowdmpm-diagnosis"},
           {"version", 1},
           {"scenario", job.scenario_path},
@@ -891,6 +914,7 @@ json diagnosis_json(const DiagnoseJob& job, const DiagnosisResult& r) {
           {"terms", terms},
           {"score_definition", "n ln(MSE) + k ln(n) over the people passing the hypothesis' region (everyone for a venue-wide term), n the disjoint windows their held-out time spans (the effective sample size), k the term's fitted parameters, minus the same of the baseline (lower is better)"},
           {"tracking_noise_m", r.tracking_noise},
+          {"desired_speed", speed},
           {"split", {{"train_end_s", r.train_end}, {"heldout_start_s", r.heldout_start}, {"heldout_end_s", r.heldout_end},
                      {"train_windows", r.train_windows}, {"heldout_windows", r.heldout_windows}}},
           {"baseline_model", r.baseline.to_json()},
@@ -946,6 +970,10 @@ void write_diagnosis(const DiagnoseJob& job, const DiagnosisResult& res, const s
   for (const Term& t : job.scenario.terms) forces.push_back(t.to_json());
   for (const Term& t : r.terms) forces.push_back(t.to_json());
   sc["forces"] = forces;
+  if (job.options.recording_speed)  // the crowd's speeds as read from the recording, which v0_scale was fitted to
+    for (const char* key : {"groups", "sources"})
+      if (sc.contains(key))
+        for (json& g : sc[key]) g["desired_speed"] = {{"mean", r.free_speed.median}, {"sd", r.free_speed.sd}};
   save_json_file(sc, (fs::path(out_dir) / "scenario.json").string());
   save_json_file(r.model.to_json(), (fs::path(out_dir) / "model.json").string());
   if (job.from_video) {

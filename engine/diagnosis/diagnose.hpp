@@ -22,6 +22,14 @@ struct DiagnoseOptions {
   double window = 3;          // s of each fitting and held-out rollout
   double stride = 1;          // s between their starts
   ResidualOptions residual;
+  // "desired_speed": "recording" (the default): every person of every window (fitting, null and
+  // held-out alike) walks at the recording's typical free speed, the median over the people of
+  // the training part (free_speed_distribution), times the fitted v0_scale; residual.desired_speed
+  // is then taken as Scenario, with the scenario's groups set to that speed. One person's free speed read
+  // from a few seconds of their own noisy track scatters more than people do, and a fit then
+  // "explains" that scatter with terms that shrink it (a forward drift with a lower v0_scale).
+  // Otherwise residual.desired_speed says ("free", "observed" or "scenario").
+  bool recording_speed = true;
   int null_replicates = 6;
   double alpha = 0.01;        // a region is significant below this p-value
   int max_regions = 3;        // regions tried per round, strongest first
@@ -104,6 +112,7 @@ struct DiagnosisResult {
   Reach region;                                          // where the first accepted term acts (everyone if none)
   ResidualMap residual_before, residual_after;           // on the training part
   double tracking_noise = 0;          // m, estimated
+  SpeedDistribution free_speed;       // of the training part's people, where recording_speed
   double train_end = 0, heldout_start = 0, heldout_end = 0;  // s
   long train_windows = 0, heldout_windows = 0;
   std::string explanation;

@@ -115,6 +115,28 @@ std::unordered_map<long, double> free_speeds_by_law(const SpeedHistory& h, long 
   return out;
 }
 
+SpeedDistribution free_speed_distribution(const TrajectorySet& t, double speed_window, long last, const MaterialParams* law) {
+  std::unordered_map<long, double> by_id;
+  if (law && material_density_law(*law)) by_id = free_speeds_by_law(*speed_history(t, speed_window), last, *law, nullptr);
+  else by_id = free_speeds(t, speed_window, last);
+  std::vector<double> v;
+  for (const auto& [id, speed] : by_id)
+    if (std::isfinite(speed)) v.push_back(speed);
+  if (v.empty())
+    throw Error(t.source + ": nobody is seen walking for " + format_number(speed_window) + " s up to frame " + std::to_string(last) +
+                ": no free speed to read");
+  auto median = [](std::vector<double>& x) {  // the upper median, as elsewhere in the engine
+    std::nth_element(x.begin(), x.begin() + static_cast<long>(x.size() / 2), x.end());
+    return x[x.size() / 2];
+  };
+  SpeedDistribution d;
+  d.median = median(v);
+  for (double& x : v) x = std::abs(x - d.median);
+  d.sd = 1.4826 * median(v);
+  d.people = static_cast<long>(v.size());
+  return d;
+}
+
 const std::vector<float>& SpeedHistory::density_ahead(double reach, double focus, const WalkableLattice* walk) const {
   std::lock_guard<std::mutex> lock(mutex_);
   std::unique_ptr<std::vector<float>>& rho = cache_[{reach, focus, walk ? walk->fingerprint : 0}];

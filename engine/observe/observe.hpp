@@ -76,6 +76,18 @@ ObservedState observe_at(const TrajectorySet& t, long frame, double velocity_win
 std::unordered_map<long, double> free_speeds(const TrajectorySet& t, double speed_window,
                                              long last = std::numeric_limits<long>::max());
 
+// The free speeds of a recording's people, summarised: each person's free speed up to frame
+// `last` (free_speeds; under a model's density-speed law, free_speeds_by_law, when `law` is given
+// and has one), then their median and robust spread (1.4826 x the median absolute deviation)
+// over people. What a crowd's desired speeds are drawn from when each person's own estimate is
+// too noisy to trust. Throws when nobody was seen walking for speed_window by then.
+struct SpeedDistribution {
+  double median = 0, sd = 0;  // m/s
+  long people = 0;
+};
+SpeedDistribution free_speed_distribution(const TrajectorySet& t, double speed_window, long last,
+                                          const MaterialParams* law = nullptr);
+
 // Where a window's agents get their desired speed: the scenario's first group (its speed, or
 // drawn per person from its distribution, desired_speed {mean, sd, min, max}; times the model's
 // v0_scale), each person's own observed walking speed (times v0_scale), or each person's free
