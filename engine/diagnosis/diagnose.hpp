@@ -127,7 +127,7 @@ struct DiagnosisResult {
 //    "video": {"path": PATH, "calibration": PATH | "scale": metres per pixel, "first": 0,
 //              "frames": 0 (to the end), "fps": 0 (the container's), "method": "farneback" | "dis",
 //              "smoothing": 0, "tracks": "detect" | "flow",
-//              detection: "body_radius": 0.18 (m), "contrast": 4, "coast": 1 (s), "smooth": 0.4 (s),
+//              detection: "body_radius": 0.18 (m), "contrast": 4, "coast": 1 (s), "smooth": 0 (s),
 //              flow tracks: "cell": 0.25 (m), "min_speed": 0.2 (m/s), "min_moving_share": 0.3,
 //              "density": 1.5 (persons/m^2), "seed_speed": 0.3 (m/s), "presence": 2 (s)},
 //    "options": {"train_share", "window", "stride", "horizon", "residual_stride", "cell",

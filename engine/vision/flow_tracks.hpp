@@ -42,14 +42,17 @@ TrajectorySet flow_tracks(const VideoFlow& vf, const Geometry& venue, const Flow
 // optical flow at it, and the nearest unclaimed detection within `gate` metres continues it.
 // A track missing its detection coasts on the flow for up to `coast` seconds, then ends; a
 // detection no track claims starts one. Positions are the detections' (ground metres), each
-// averaged with its track's over `smooth` seconds centred on it.
+// averaged with its track's over `smooth` seconds centred on it, if smooth > 0.
 struct DetectOptions {
   // m: about the radius of the disc with a body's area seen from above (an ellipse of a
   // shoulder breadth of 0.45 m and a chest depth of 0.25 m: 0.17 m).
   double body_radius = 0.18;
   double contrast = 4;        // robust standard deviations of the band-pass response
   double gate = 0.35;         // m a detection may lie from a track's predicted position
-  double smooth = 0.4;         // s: each position is the mean of the track's positions within half this of it
+  // s: each position is the mean of the track's positions within half this of it (0: none). A
+  // diagnosis that gives everyone the recording's typical free speed finds more without it
+  // (benchmarks/results/diagnosis_video.md); a track's own speeds are smoother with 0.4.
+  double smooth = 0;
   double coast = 1;           // s a track coasts on the flow without a detection (a person the detector misses a while)
   void check() const;
 };
