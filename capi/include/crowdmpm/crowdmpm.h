@@ -244,7 +244,7 @@ CMPM_API cmpm_Status cmpm_PredictRecording(const char* request_json, const char*
  *              "frames": 0 (to the end), "fps": 0 (the container's), "method": "farneback" | "dis",
  *              "smoothing": 0, "tracks": "detect",
  *              detection: "body_radius": 0.18 (m), "contrast": 4 (robust sd of the blob
- *              response), "coast": 1 (s), "smooth": 0.4 (s);
+ *              response), "coast": 1 (s), "smooth": 0 (s);
  *              flow tracks: "cell": 0.25 (m), "min_speed": 0.2 (m/s: slower flow counts as
  *              still), "min_moving_share": 0.3, "density": 1.5 (persons/m2), "seed_speed": 0.3
  *              (m/s), "presence": 2 (s)},
@@ -253,7 +253,10 @@ CMPM_API cmpm_Status cmpm_PredictRecording(const char* request_json, const char*
  *                "source_margin": 2, "null_replicates": 6, "alpha": 0.01, "max_terms": 3,
  *                "min_gain": 0.1, "min_gain_z": 3, "candidates": [NAME, ...],
  *                "params": [NAME, ...], "iterations": 60, "learning_rate": 0.05,
- *                "threads": 1, "seed": 1, "desired_speed": "free",
+ *                "threads": 1, "seed": 1,
+ *                "desired_speed": "recording" (everyone at the median free speed of the
+ *                recording's training part; report.json "desired_speed" gives it) | "free"
+ *                (each person's own so far) | "observed" | "scenario",
  *                "baseline_optimizer": "adam", "optimizer": "adam"},
  *    "input": {"max_bytes": 268435456, "allow_outside_paths": false}}
  * Blocks for seconds to minutes; the result does not depend on "threads".
