@@ -108,6 +108,7 @@ TEST_CASE("diagnosis finds a concealed obstacle and writes the documented report
   CHECK(ds.at("spread").get<double>() > 0.03);
   CHECK(ds.at("spread").get<double>() < 0.3);
   CHECK(ds.at("people").get<long>() > 20);
+  CHECK(rep.at("density_law") == "none");  // the default crowd material has none, and none was asked for
   for (const char* f : {"residual_before.png", "residual_after.png", "summary.txt", "scenario.json", "model.json"})
     CHECK(fs::file_size(out / f) > 0);
   // The venue with the term is a scenario the simulator runs.
@@ -241,6 +242,20 @@ TEST_CASE("diagnosis requests name what is wrong", "[diagnosis]") {
   fails_with({{"scenario", belief}, {"trajectories", rec}, {"options", {{"params", {"nonsense"}}}}}, "nonsense");
   fails_with({{"scenario", belief}, {"trajectories", rec}, {"options", {{"optimizer", "newton"}}}}, "optimizer");
   fails_with({{"scenario", belief}, {"trajectories", rec}, {"options", {{"desired_speed", "typical"}}}}, "desired_speed");
+  fails_with({{"scenario", belief}, {"trajectories", rec}, {"options", {{"density_law", "yes"}}}}, "density_law");
+  {
+    // Weidmann's law is added to a crowd material without one only when asked, and then refitted.
+    const DiagnoseJob plain = parse_diagnose_job({{"scenario", belief}, {"trajectories", rec}});
+    CHECK_FALSE(plain.density_law_added);
+    CHECK(plain.model.params.density_speed_gamma == 0);
+    const DiagnoseJob law = parse_diagnose_job({{"scenario", belief}, {"trajectories", rec}, {"options", {{"density_law", true}}}});
+    CHECK(law.density_law_added);
+    CHECK(law.model.params.density_speed_gamma == Approx(kWeidmannGamma));
+    CHECK(law.model.params.density_speed_max == Approx(kWeidmannMaxDensity));
+    const auto& p = law.options.params;
+    CHECK(std::find(p.begin(), p.end(), "density_speed_gamma") != p.end());
+    CHECK(std::find(p.begin(), p.end(), "density_speed_max") != p.end());
+  }
   fails_with({{"scenario", belief}, {"trajectories", rec}, {"options", {{"baseline_optimizer", "sgd"}}}}, "baseline_optimizer");
   {
     const DiagnoseJob job = parse_diagnose_job(

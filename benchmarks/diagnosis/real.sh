@@ -3,10 +3,12 @@
 # exit constriction of 0.70 m that scenarios/corridor.json lacks), the CrowdQueue run 030 against
 # the bottleneck without its gate (real/bottleneck_no_gate.json), and the control uo-180-180-180
 # (no constriction) against corridor.json. Skips without ../shared/data.
-# Usage: benchmarks/diagnosis/real.sh [BUILD_DIR]
+# Usage: benchmarks/diagnosis/real.sh [BUILD_DIR] [crowdmpm diagnose options, e.g. --options JSON]
+# (benchmarks/results/diagnosis_real.md: --options '{"density_law": true}')
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 build=${1:-build}
+shift || true
 real=../shared/data/real
 [ -d "$real" ] || { echo "skipped: $real is absent"; exit 0; }
 cli="$build/cli/crowdmpm"
@@ -18,6 +20,6 @@ runs=("scenarios/corridor.json $real/fzj_hermes_2009_corridor_uo/uo-180-180-070.
 for r in "${runs[@]}"; do
   read -r scenario recording name <<< "$r"
   start=$(date +%s)
-  "$cli" diagnose --scenario "$scenario" --observed "$recording" --out "$work/$name" --threads 2 --quiet > "$work/$name.log"
+  "$cli" diagnose --scenario "$scenario" --observed "$recording" --out "$work/$name" --threads 2 --quiet "$@" > "$work/$name.log"
   echo "$name ($(( $(date +%s) - start )) s): $(head -1 "$work/$name/summary.txt")"
 done

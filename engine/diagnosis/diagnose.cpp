@@ -287,7 +287,7 @@ std::vector<Term> initial_candidates(const Cluster& c, const Vec2& global_mean, 
       j = {{"type", "wall_friction"}, {"from", {a.x(), a.y()}}, {"to", {b.x(), b.y()}}, {"coefficient", 1.0},
            {"range", 0.5}, {"learn", {"coefficient", "range"}}};
     } else if (type == "density_speed") {
-      j = {{"type", "density_speed"}, {"gamma", 1.913}, {"max_density", 5.4}, {"learn", {"gamma", "max_density"}}};
+      j = {{"type", "density_speed"}, {"gamma", kWeidmannGamma}, {"max_density", kWeidmannMaxDensity}, {"learn", {"gamma", "max_density"}}};
     } else if (type == "counterflow") {
       // The people walking another way leave a residual against the crowd's motion.
       const double angle = c.mean_residual.squaredNorm() > 0 ? std::atan2(c.mean_residual.y(), c.mean_residual.x()) * 180 / M_PI : 0;
@@ -524,7 +524,8 @@ DiagnoseJob parse_diagnose_job(const json& request, const std::string& base_dir)
     op->require_object();
     op->allow_only({"train_share", "window", "stride", "horizon", "residual_stride", "cell", "time_bin", "z_threshold", "source_margin",
                     "null_replicates", "alpha", "max_terms", "min_gain", "min_gain_z", "candidates", "params",
-                    "iterations", "learning_rate", "threads", "seed", "desired_speed", "baseline_optimizer", "optimizer"});
+                    "iterations", "learning_rate", "threads", "seed", "desired_speed", "density_law", "baseline_optimizer",
+                    "optimizer"});
     o.train_share = op->in_range("train_share", 0.2, 0.9, o.train_share);
     o.window = op->in_range("window", 0.2, 30, o.window);
     o.stride = op->in_range("stride", 0.05, 30, o.stride);
@@ -548,6 +549,7 @@ DiagnoseJob parse_diagnose_job(const json& request, const std::string& base_dir)
     o.seed = static_cast<uint64_t>(op->in_range("seed", 0, 9e15, static_cast<double>(o.seed)));
     const std::string ds = op->one_of("desired_speed", {"recording", "scenario", "observed", "free"}, std::string("recording"));
     o.recording_speed = ds == "recording";
+    o.density_law = op->boolean("density_law", o.density_law);
     o.residual.desired_speed = ds == "scenario" ? DesiredSpeed::Scenario : ds == "observed" ? DesiredSpeed::Observed : DesiredSpeed::Free;
     if (auto c = op->get("candidates")) {
       o.candidates.clear();
@@ -567,9 +569,16 @@ DiagnoseJob parse_diagnose_job(const json& request, const std::string& base_dir)
       for (size_t i = 0; i < p->size(); ++i) o.params.push_back(p->item(i).as_string());
     }
   }
+  // A baseline that behaves like a crowd slows people where it is dense: a crowd material without
+  // a speed-density law of its own gets Weidmann's (its parameters refitted with the baseline's).
+  if (o.density_law && job.model.is_continuum() && !material_density_law(job.model.params)) {
+    job.model.params.density_speed_gamma = kWeidmannGamma;
+    job.model.params.density_speed_max = kWeidmannMaxDensity;
+    job.density_law_added = true;
+  }
   if (!o.params_given) {
     const std::vector<std::string> learnable = learnable_params(job.model);
-    for (const char* name : {"v0_scale", "tau", "time_gap"})
+    for (const char* name : {"v0_scale", "tau", "time_gap", "density_speed_gamma", "density_speed_max"})
       if (std::find(learnable.begin(), learnable.end(), name) != learnable.end()) o.params.push_back(name);
   }
   // Unknown or unlearnable parameter names fail here, naming them.
@@ -915,6 +924,9 @@ json diagnosis_json(const DiagnoseJob& job, const DiagnosisResult& r) {
           {"score_definition", "n ln(MSE) + k ln(n) over the people passing the hypothesis' region (everyone for a venue-wide term), n the disjoint windows their held-out time spans (the effective sample size), k the term's fitted parameters, minus the same of the baseline (lower is better)"},
           {"tracking_noise_m", r.tracking_noise},
           {"desired_speed", speed},
+          {"density_law", job.density_law_added ? "Weidmann's speed-density law added to the model's material (gamma 1.913, max 5.4 persons/m^2), its gamma and max refitted with the baseline (baseline_model)"
+                          : material_density_law(job.model.params) ? "the model's own speed-density law"
+                                                                   : "none"},
           {"split", {{"train_end_s", r.train_end}, {"heldout_start_s", r.heldout_start}, {"heldout_end_s", r.heldout_end},
                      {"train_windows", r.train_windows}, {"heldout_windows", r.heldout_windows}}},
           {"baseline_model", r.baseline.to_json()},

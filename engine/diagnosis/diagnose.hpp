@@ -30,6 +30,13 @@ struct DiagnoseOptions {
   // "explains" that scatter with terms that shrink it (a forward drift with a lower v0_scale).
   // Otherwise residual.desired_speed says ("free", "observed" or "scenario").
   bool recording_speed = true;
+  // "density_law" (default false): a crowd material without a speed-density law of its own gets
+  // Weidmann's (kWeidmannGamma, kWeidmannMaxDensity) in the baseline, its density_speed_gamma
+  // and density_speed_max fitted with the other parameters (DiagnoseJob::density_law_added): a
+  // baseline that does not slow people where it is dense "misses" that in every dense recording
+  // (benchmarks/results/diagnosis_real.md). Several times slower (the density ahead of everyone
+  // every step); not yet measured on the synthetic suite, hence off by default.
+  bool density_law = false;
   int null_replicates = 6;
   double alpha = 0.01;        // a region is significant below this p-value
   int max_regions = 3;        // regions tried per round, strongest first
@@ -133,7 +140,7 @@ struct DiagnosisResult {
 //    "options": {"train_share", "window", "stride", "horizon", "residual_stride", "cell",
 //                "time_bin", "z_threshold", "null_replicates", "alpha", "max_terms",
 //                "min_gain", "min_gain_z", "candidates", "params", "iterations",
-//                "learning_rate", "threads", "seed", "desired_speed", "baseline_optimizer",
+//                "learning_rate", "threads", "seed", "desired_speed", "density_law", "baseline_optimizer",
 //                "optimizer"}}
 struct DiagnoseJob {
   std::string scenario_path, trajectories_path;  // trajectories_path: the video's, for a video
@@ -143,7 +150,8 @@ struct DiagnoseJob {
   DetectOptions detection;
   FlowTrackOptions tracks;
   ScenarioDef scenario;
-  Model model;
+  Model model;                // with Weidmann's law added where density_law_added
+  bool density_law_added = false;
   TrajectorySet recording;
   DiagnoseOptions options;
 };

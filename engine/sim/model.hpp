@@ -10,6 +10,10 @@ namespace crowdmpm {
 
 enum class MaterialKind { Crowd, Fluid, Elastic, SocialForce };
 
+// Weidmann's (1993) speed-density relation: gamma and the density where people stop.
+constexpr double kWeidmannGamma = 1.913;        // persons/m^2
+constexpr double kWeidmannMaxDensity = 5.4;     // persons/m^2
+
 struct MaterialParams {
   double E = 20;                 // stiffness of the continuum stress
   double gamma = 1;              // exponent of P(J) = E (J^-gamma - 1)
@@ -38,8 +42,8 @@ struct MaterialParams {
   // term's law, terms/density_speed.cpp), rho the persons/m^2 ahead of the person within the
   // reach, weighted towards the heading by the focus (local_density_ahead, world.hpp: people
   // behind do not count). gamma 0: off.
-  double density_speed_gamma = 0;  // persons/m^2 (Weidmann: 1.913)
-  double density_speed_max = 5.4;  // persons/m^2: where people stop
+  double density_speed_gamma = 0;  // persons/m^2 (Weidmann: kWeidmannGamma)
+  double density_speed_max = kWeidmannMaxDensity;  // persons/m^2: where people stop
   double density_speed_reach = 1;  // m: R, how far ahead the density is read
   // The law's floor phi: people in a dense crowd still want to move (and press on those ahead)
   // at phi times their free speed; the headway and contact hold them where there is no room.
