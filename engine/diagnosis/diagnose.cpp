@@ -924,7 +924,9 @@ json diagnosis_json(const DiagnoseJob& job, const DiagnosisResult& r) {
           {"score_definition", "n ln(MSE) + k ln(n) over the people passing the hypothesis' region (everyone for a venue-wide term), n the disjoint windows their held-out time spans (the effective sample size), k the term's fitted parameters, minus the same of the baseline (lower is better)"},
           {"tracking_noise_m", r.tracking_noise},
           {"desired_speed", speed},
-          {"density_law", job.density_law_added ? "Weidmann's speed-density law added to the model's material (gamma 1.913, max 5.4 persons/m^2), its gamma and max refitted with the baseline (baseline_model)"
+          {"density_law", job.density_law_added ? "Weidmann's speed-density law added to the model's material (gamma " + format_number(kWeidmannGamma) +
+                                                    ", max " + format_number(kWeidmannMaxDensity) +
+                                                    " persons/m^2), its gamma and max refitted with the baseline (baseline_model)"
                           : material_density_law(job.model.params) ? "the model's own speed-density law"
                                                                    : "none"},
           {"split", {{"train_end_s", r.train_end}, {"heldout_start_s", r.heldout_start}, {"heldout_end_s", r.heldout_end},
