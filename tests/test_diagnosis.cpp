@@ -61,7 +61,9 @@ json request_for(const Case& c) {
 
 TEST_CASE("diagnosis finds a concealed obstacle and writes the documented report", "[diagnosis]") {
   const Case c = make_case("obstacle", json::array({{{"circle", {{"center", {7, 1.5}}, {"radius", 0.5}}}}}));
-  const DiagnoseJob job = parse_diagnose_job(request_for(c));
+  json request = request_for(c);
+  request["options"]["density_law"] = false;
+  const DiagnoseJob job = parse_diagnose_job(request);
   const DiagnosisResult r = run_diagnosis(job, [](const std::string& s) { std::printf("  %s\n", s.c_str()); });
   const fs::path out = c.dir / "out";
   write_diagnosis(job, r, out.string());
@@ -101,14 +103,17 @@ TEST_CASE("diagnosis finds a concealed obstacle and writes the documented report
   }
   REQUIRE(rep.at("terms").size() == 1);
   CHECK(rep.at("terms")[0].at("type") == "obstacle");
-  // Everyone walked at the recording's typical free speed: people drawn around 1.3 m/s, sd 0.15.
+  // Everyone walked at the recording's typical free speed: people drawn around 1.3 m/s, sd 0.15
+  // (read as it is: this request declines the default speed-density law).
   const json& ds = rep.at("desired_speed");
   CHECK(ds.at("mode") == "recording");
   CHECK(ds.at("speed").get<double>() == Approx(1.3).margin(0.15));
+  CHECK(ds.at("effective").get<double>() ==
+        Approx(ds.at("speed").get<double>() * rep.at("baseline_model").at("parameters").at("v0_scale").get<double>()));
   CHECK(ds.at("spread").get<double>() > 0.03);
   CHECK(ds.at("spread").get<double>() < 0.3);
   CHECK(ds.at("people").get<long>() > 20);
-  CHECK(rep.at("density_law") == "none");  // the default crowd material has none, and none was asked for
+  CHECK(rep.at("density_law") == "none");  // the default crowd material has none, and the request declined Weidmann's
   for (const char* f : {"residual_before.png", "residual_after.png", "summary.txt", "scenario.json", "model.json"})
     CHECK(fs::file_size(out / f) > 0);
   // The venue with the term is a scenario the simulator runs.
@@ -133,6 +138,16 @@ TEST_CASE("diagnosis of a recording with nothing concealed finds nothing", "[dia
   const json rep = load_json_file((c.dir / "out" / "report.json").string());
   CHECK(rep.at("verdict").at("type") == "none");
   CHECK(rep.at("terms").empty());
+  // By default the baseline got Weidmann's law, and the speeds were read under it: higher than
+  // walked (the law slows people at any density; the social-force crowd slows less), the fitted
+  // v0_scale bringing them back down.
+  CHECK(rep.at("density_law").get<std::string>().rfind("Weidmann's speed-density law added", 0) == 0);
+  const json& ds = rep.at("desired_speed");
+  const double v0_scale = rep.at("baseline_model").at("parameters").at("v0_scale").get<double>();
+  CHECK(ds.at("speed").get<double>() > 1.3);
+  CHECK(ds.at("effective").get<double>() == Approx(ds.at("speed").get<double>() * v0_scale));
+  CHECK(ds.at("effective").get<double>() > 1.1);
+  CHECK(ds.at("effective").get<double>() < 2.0);
 }
 
 TEST_CASE("diagnosis from a rendered video: its people are detected and followed and a concealed obstacle is found",
@@ -244,11 +259,13 @@ TEST_CASE("diagnosis requests name what is wrong", "[diagnosis]") {
   fails_with({{"scenario", belief}, {"trajectories", rec}, {"options", {{"desired_speed", "typical"}}}}, "desired_speed");
   fails_with({{"scenario", belief}, {"trajectories", rec}, {"options", {{"density_law", "yes"}}}}, "density_law");
   {
-    // Weidmann's law is added to a crowd material without one only when asked, and then refitted.
-    const DiagnoseJob plain = parse_diagnose_job({{"scenario", belief}, {"trajectories", rec}});
+    // Weidmann's law is added to a crowd material without one unless declined, and then refitted.
+    const DiagnoseJob plain = parse_diagnose_job({{"scenario", belief}, {"trajectories", rec}, {"options", {{"density_law", false}}}});
     CHECK_FALSE(plain.density_law_added);
     CHECK(plain.model.params.density_speed_gamma == 0);
-    const DiagnoseJob law = parse_diagnose_job({{"scenario", belief}, {"trajectories", rec}, {"options", {{"density_law", true}}}});
+    const auto& q = plain.options.params;
+    CHECK(std::find(q.begin(), q.end(), "density_speed_gamma") == q.end());
+    const DiagnoseJob law = parse_diagnose_job({{"scenario", belief}, {"trajectories", rec}});
     CHECK(law.density_law_added);
     CHECK(law.model.params.density_speed_gamma == Approx(kWeidmannGamma));
     CHECK(law.model.params.density_speed_max == Approx(kWeidmannMaxDensity));

@@ -910,8 +910,12 @@ json diagnosis_json(const DiagnoseJob& job, const DiagnosisResult& r) {
     speed["speed"] = r.free_speed.median;
     speed["spread"] = r.free_speed.sd;
     speed["people"] = r.free_speed.people;
-    speed["definition"] = "every person walks at the median free speed (m/s, times the fitted v0_scale) of the training part's people, each person's free speed the 90th percentile of their speed over " +
-                          num(job.options.residual.speed_window, 1) + " s along their track; spread: 1.4826 x the median absolute deviation";
+    speed["effective"] = r.free_speed.median * r.baseline.params.v0_scale;
+    const bool law = material_density_law(job.model.params);
+    speed["definition"] = "every person walks at the median free speed (m/s, times the fitted v0_scale: effective) of the training part's people, each person's free speed the 90th percentile of their speed over " +
+                          num(job.options.residual.speed_window, 1) + " s along their track" +
+                          (law ? ", each speed divided by the starting model's speed-density factor at the density ahead of them (the speed they would walk if nobody were ahead)" : "") +
+                          "; spread: 1.4826 x the median absolute deviation";
   }
   return {{"format", "crowdmpm-diagnosis"},
           {"version", 1},

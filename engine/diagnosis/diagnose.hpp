@@ -30,13 +30,13 @@ struct DiagnoseOptions {
   // "explains" that scatter with terms that shrink it (a forward drift with a lower v0_scale).
   // Otherwise residual.desired_speed says ("free", "observed" or "scenario").
   bool recording_speed = true;
-  // "density_law" (default false): a crowd material without a speed-density law of its own gets
+  // "density_law" (default true): a crowd material without a speed-density law of its own gets
   // Weidmann's (kWeidmannGamma, kWeidmannMaxDensity) in the baseline, its density_speed_gamma
   // and density_speed_max fitted with the other parameters (DiagnoseJob::density_law_added): a
   // baseline that does not slow people where it is dense "misses" that in every dense recording
-  // (benchmarks/results/diagnosis_real.md). Several times slower (the density ahead of everyone
-  // every step); not yet measured on the synthetic suite, hence off by default.
-  bool density_law = false;
+  // (benchmarks/results/diagnosis_real.md). About 2-5 times slower (the density ahead of everyone
+  // every step); false keeps the material as given.
+  bool density_law = true;
   int null_replicates = 6;
   double alpha = 0.01;        // a region is significant below this p-value
   int max_regions = 3;        // regions tried per round, strongest first

@@ -257,8 +257,9 @@ CMPM_API cmpm_Status cmpm_PredictRecording(const char* request_json, const char*
  *                "desired_speed": "recording" (everyone at the median free speed of the
  *                recording's training part; report.json "desired_speed" gives it) | "free"
  *                (each person's own so far) | "observed" | "scenario",
- *                "density_law": false (true: a crowd material without a speed-density law
- *                gets Weidmann's in the baseline, refitted with it; several times slower),
+ *                "density_law": true (a crowd material without a speed-density law gets
+ *                Weidmann's in the baseline, refitted with it; false: the material as given,
+ *                2-5 times faster),
  *                "baseline_optimizer": "adam", "optimizer": "adam"},
  *    "input": {"max_bytes": 268435456, "allow_outside_paths": false}}
  * Blocks for seconds to minutes; the result does not depend on "threads".
