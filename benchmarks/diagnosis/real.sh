@@ -4,7 +4,7 @@
 # the bottleneck without its gate (real/bottleneck_no_gate.json), and the control uo-180-180-180
 # (no constriction) against corridor.json. Skips without ../shared/data.
 # Usage: benchmarks/diagnosis/real.sh [BUILD_DIR] [crowdmpm diagnose options, e.g. --options JSON]
-# (benchmarks/results/diagnosis_real.md: --options '{"density_law": true}')
+# (benchmarks/results/diagnosis_real.md; its older sections: --options '{"density_law": false}')
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 build=${1:-build}
