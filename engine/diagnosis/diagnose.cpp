@@ -723,8 +723,9 @@ DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& pr
       h.heldout_error_global = global.rms;
       // The term against a reference: its held-out gain, in standard errors, and the information
       // criterion; the reason it fails, or empty.
+      const size_t k_term = cand.learned_count();  // (a structured binding: C++17 lambdas cannot capture it)
       const auto judge = [&](const ErrorStats& before) {
-        const Comparison cmp = compare(before, region, 0, cand.learned_count(), d.stride, d.window);
+        const Comparison cmp = compare(before, region, 0, k_term, d.stride, d.window);
         h.baseline_error = before.rms;
         h.gain = cmp.gain;
         h.gain_z = cmp.z;
