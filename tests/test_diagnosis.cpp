@@ -274,6 +274,10 @@ TEST_CASE("diagnosis requests name what is wrong", "[diagnosis]") {
     CHECK(std::find(p.begin(), p.end(), "density_speed_max") != p.end());
   }
   fails_with({{"scenario", belief}, {"trajectories", rec}, {"options", {{"baseline_optimizer", "sgd"}}}}, "baseline_optimizer");
+  fails_with({{"scenario", belief}, {"trajectories", rec}, {"options", {{"baseline_restarts", 2.5}}}}, "baseline_restarts");
+  fails_with({{"scenario", belief}, {"trajectories", rec}, {"options", {{"baseline_restarts", 21}}}}, "baseline_restarts");
+  CHECK(parse_diagnose_job({{"scenario", belief}, {"trajectories", rec}, {"options", {{"baseline_restarts", 0}}}}).options.baseline_restarts == 0);
+  CHECK(parse_diagnose_job({{"scenario", belief}, {"trajectories", rec}}).options.baseline_restarts == 3);
   {
     const DiagnoseJob job = parse_diagnose_job(
         {{"scenario", belief}, {"trajectories", rec}, {"options", {{"baseline_optimizer", "lbfgs"}, {"optimizer", "adam"}}}});

@@ -342,6 +342,7 @@ bool is_global(const Term& t) { return influence(t).everyone(); }
 struct FitResult {
   Model model;
   std::vector<Term> terms;
+  double validation = 0;  // the fit's best validation loss (m2)
   bool ok = false;
   std::string error;
 };
@@ -356,6 +357,7 @@ FitResult fit(const ScenarioDef& scenario, const std::vector<Term>& terms, const
     const TrainResult r = train_on_windows({s}, sp.fit, sp.fit_validation, start, o);
     f.model = r.model;
     f.terms = r.terms.empty() ? terms : r.terms[0];
+    f.validation = r.best_validation;
     f.ok = true;
   } catch (const Error& e) {
     f.error = e.what();
@@ -524,7 +526,7 @@ DiagnoseJob parse_diagnose_job(const json& request, const std::string& base_dir)
     op->require_object();
     op->allow_only({"train_share", "window", "stride", "horizon", "residual_stride", "cell", "time_bin", "z_threshold", "source_margin",
                     "null_replicates", "alpha", "max_terms", "min_gain", "min_gain_z", "candidates", "params",
-                    "iterations", "learning_rate", "threads", "seed", "desired_speed", "density_law", "baseline_optimizer",
+                    "iterations", "learning_rate", "baseline_restarts", "threads", "seed", "desired_speed", "density_law", "baseline_optimizer",
                     "optimizer"});
     o.train_share = op->in_range("train_share", 0.2, 0.9, o.train_share);
     o.window = op->in_range("window", 0.2, 30, o.window);
@@ -542,6 +544,7 @@ DiagnoseJob parse_diagnose_job(const json& request, const std::string& base_dir)
     o.min_gain_z = op->in_range("min_gain_z", 0, 100, o.min_gain_z);
     o.iterations = static_cast<int>(op->in_range("iterations", 1, 10000, o.iterations));
     o.learning_rate = op->in_range("learning_rate", 1e-6, 10, o.learning_rate);
+    o.baseline_restarts = op->integer("baseline_restarts", 0, 20, o.baseline_restarts);
     o.baseline_lbfgs = op->one_of("baseline_optimizer", {"adam", "lbfgs"}, std::string(o.baseline_lbfgs ? "lbfgs" : "adam")) == "lbfgs";
     o.candidates_lbfgs = op->one_of("optimizer", {"adam", "lbfgs"}, std::string(o.candidates_lbfgs ? "lbfgs" : "adam")) == "lbfgs";
     o.threads = static_cast<int>(op->in_range("threads", 1, 256, o.threads));
@@ -624,8 +627,15 @@ DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& pr
   Model model = job.model;
   std::vector<Term> terms = belief.terms;
   if (!d.params.empty()) {
-    const FitResult b = fit(belief, terms, model, sp, d, d.baseline_lbfgs);
+    FitResult b = fit(belief, terms, model, sp, d, d.baseline_lbfgs);
     if (!b.ok) throw Error("diagnosis: the baseline could not be fitted: " + b.error);
+    for (int k = 0; k < d.baseline_restarts; ++k) {
+      FitResult again = fit(belief, b.terms, b.model, sp, d, d.baseline_lbfgs);
+      if (!again.ok || !(again.validation < b.validation * (1 - 1e-3))) break;
+      say("baseline fit continued: validation loss " + num(b.validation, 4) + " -> " + num(again.validation, 4) + " m2" +
+          values_of(again.model, d.params));
+      b = std::move(again);
+    }
     model = b.model;
     terms = b.terms;
   }

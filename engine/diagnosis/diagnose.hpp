@@ -55,6 +55,12 @@ struct DiagnoseOptions {
   bool params_given = false;
   int iterations = 60;
   double learning_rate = 0.05;
+  // The baseline's fit is run again from where it stopped (fresh optimiser state and learning
+  // rate) while its validation loss falls by more than 0.1%, at most this many times: one run of
+  // `iterations` minibatch steps often stops short of the parameters a second run finds, and a
+  // candidate's fit, which continues from the baseline, would otherwise be credited with the
+  // rest of the baseline's convergence.
+  int baseline_restarts = 3;
   // How the baseline's parameters are fitted ("baseline_optimizer") and how every candidate term
   // and the round's refitted baseline are ("optimizer"): "adam" (minibatches of 4 windows, the
   // default) or "lbfgs" (full batch, deterministic; on the suite's room several times slower).
@@ -140,7 +146,7 @@ struct DiagnosisResult {
 //    "options": {"train_share", "window", "stride", "horizon", "residual_stride", "cell",
 //                "time_bin", "z_threshold", "null_replicates", "alpha", "max_terms",
 //                "min_gain", "min_gain_z", "candidates", "params", "iterations",
-//                "learning_rate", "threads", "seed", "desired_speed", "density_law", "baseline_optimizer",
+//                "learning_rate", "baseline_restarts", "threads", "seed", "desired_speed", "density_law", "baseline_optimizer",
 //                "optimizer"}}
 struct DiagnoseJob {
   std::string scenario_path, trajectories_path;  // trajectories_path: the video's, for a video
