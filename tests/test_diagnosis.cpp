@@ -276,8 +276,8 @@ TEST_CASE("diagnosis requests name what is wrong", "[diagnosis]") {
   fails_with({{"scenario", belief}, {"trajectories", rec}, {"options", {{"baseline_optimizer", "sgd"}}}}, "baseline_optimizer");
   fails_with({{"scenario", belief}, {"trajectories", rec}, {"options", {{"baseline_restarts", 2.5}}}}, "baseline_restarts");
   fails_with({{"scenario", belief}, {"trajectories", rec}, {"options", {{"baseline_restarts", 21}}}}, "baseline_restarts");
-  CHECK(parse_diagnose_job({{"scenario", belief}, {"trajectories", rec}, {"options", {{"baseline_restarts", 0}}}}).options.baseline_restarts == 0);
-  CHECK(parse_diagnose_job({{"scenario", belief}, {"trajectories", rec}}).options.baseline_restarts == 3);
+  CHECK(parse_diagnose_job({{"scenario", belief}, {"trajectories", rec}, {"options", {{"baseline_restarts", 3}}}}).options.baseline_restarts == 3);
+  CHECK(parse_diagnose_job({{"scenario", belief}, {"trajectories", rec}}).options.baseline_restarts == 0);
   {
     const DiagnoseJob job = parse_diagnose_job(
         {{"scenario", belief}, {"trajectories", rec}, {"options", {{"baseline_optimizer", "lbfgs"}, {"optimizer", "adam"}}}});

@@ -253,8 +253,8 @@ CMPM_API cmpm_Status cmpm_PredictRecording(const char* request_json, const char*
  *                "source_margin": 2, "null_replicates": 6, "alpha": 0.01, "max_terms": 3,
  *                "min_gain": 0.1, "min_gain_z": 3, "candidates": [NAME, ...],
  *                "params": [NAME, ...], "iterations": 60, "learning_rate": 0.05,
- *                "baseline_restarts": 3 (the baseline's fit run again from where it
- *                stopped while its validation loss falls by more than 0.1%),
+ *                "baseline_restarts": 0 (up to this many times, the baseline's fit run
+ *                again from where it stopped while its validation loss falls by more than 0.1%),
  *                "threads": 1, "seed": 1,
  *                "desired_speed": "recording" (everyone at the median free speed of the
  *                recording's training part; report.json "desired_speed" gives it) | "free"
