@@ -59,8 +59,8 @@ struct DiagnoseOptions {
   // rate) while its validation loss falls by more than 0.1%, at most this many times: one run of
   // `iterations` minibatch steps often stops short of the parameters a second run finds, and a
   // candidate's fit, which continues from the baseline, is then credited with part of the rest
-  // of the baseline's convergence. Off by default: with 3 the suite found the same effects and
-  // the CrowdQueue gate's post fell just under min_gain (benchmarks/results/diagnosis.md).
+  // of the baseline's convergence. Off by default: with 3 the suite at 0.02 m found the same
+  // effects as with one fit (benchmarks/results/diagnosis.md); the other levels are not measured.
   int baseline_restarts = 0;
   // How the baseline's parameters are fitted ("baseline_optimizer") and how every candidate term
   // and the round's refitted baseline are ("optimizer"): "adam" (minibatches of 4 windows, the
