@@ -55,7 +55,7 @@ json request_for(const Case& c) {
   return {{"scenario", c.belief},
           {"trajectories", c.observed},
           {"options", {{"iterations", 30}, {"null_replicates", 3}, {"threads", 2}, {"max_terms", 1},
-                       {"candidates", {"obstacle", "drift", "slow_zone"}}}}};
+                       {"candidates", {"obstacle", "constriction", "drift", "slow_zone"}}}}};
 }
 }  // namespace
 
@@ -125,6 +125,29 @@ TEST_CASE("diagnosis finds a concealed obstacle and writes the documented report
   CHECK(fitted.groups[0].speed_sd == Approx(ds.at("spread").get<double>()));
   Simulation sim(fitted, fitted.model_or_default(), 1);
   sim.run_steps(10);
+}
+
+TEST_CASE("diagnosis finds a concealed gate as a wall with an opening", "[diagnosis]") {
+  // A wall across the corridor at x = 9 with a 1.4 m opening at y = 1.5 (a gate the plan lacks).
+  const Case c = make_case("gate", json::array({{{"rect", {8.8, 0, 9.0, 0.8}}}, {{"rect", {8.8, 2.2, 9.0, 3}}}}));
+  const DiagnoseJob job = parse_diagnose_job(request_for(c));
+  const DiagnosisResult r = run_diagnosis(job, [](const std::string& s) { std::printf("  %s\n", s.c_str()); });
+  REQUIRE(r.terms.size() == 1);
+  const Term& t = r.terms[0];
+  CHECK(std::string(t.law->type()) == "constriction");
+  const double miss = std::hypot(t.params[0] - 8.9, t.params[1] - 1.5);
+  std::printf("gate found: opening %.2f m at (%.2f, %.2f) heading %.0f degrees (truth 1.4 m at (8.9, 1.5), 0): %.2f m off; "
+              "held-out %.3f -> %.3f m\n", t.params[2], t.params[0], t.params[1], t.params[3], miss, r.region_before, r.region_after);
+  CHECK(miss < 1.0);
+  CHECK(std::abs(t.params[2] - 1.4) < 0.5);
+  CHECK(std::cos(t.params[3] * M_PI / 180) > 0.9);  // across the corridor's flow
+  CHECK(r.region_after < 0.9 * r.region_before);
+  // Reported as an obstacle of that shape, at the opening.
+  write_diagnosis(job, r, (c.dir / "out").string());
+  const json v = load_json_file((c.dir / "out" / "report.json").string()).at("verdict");
+  CHECK(v.at("type") == "obstacle");
+  CHECK(v.at("params").at("shape") == "constriction");
+  CHECK(v.at("params").at("radius").get<double>() == Approx(0.5 * t.params[2]));
 }
 
 TEST_CASE("diagnosis of a recording with nothing concealed finds nothing", "[diagnosis]") {

@@ -24,7 +24,8 @@ std::map<std::string, std::vector<double>> sample_params() {
           {"slow_zone", {-0.5, -0.4, 1.2, 1.0, 0.4, 0.5}},
           {"wall_friction", {-0.8, -0.5, 1.4, 0.2, 1.5, 0.6}},
           {"density_speed", {1.9, 4.5}},
-          {"counterflow", {-0.5, -0.4, 1.2, 1.0, 160, 0.5, 2.5, 0.4}}};
+          {"counterflow", {-0.5, -0.4, 1.2, 1.0, 160, 0.5, 2.5, 0.4}},
+          {"constriction", {0.4, 0.3, 0.6, 30, 0.2, 8, 0.3, 0.7, 1.5}}};
 }
 
 // The field of parameter k.
@@ -122,7 +123,10 @@ const char* kTermScene = R"({"format": "crowdmpm-scenario", "version": 1, "name"
              {"type": "attractor", "center": [3, 1], "strength": 0.2, "range": 4},
              {"type": "obstacle", "center": [4.5, 4.2], "radius": 0.3, "strength": 4, "softness": 0.2},
              {"type": "wall_friction", "from": [0, 0.2], "to": [12, 0.2], "coefficient": 0.8, "range": 0.8},
-             {"type": "counterflow", "min": [2, 2], "max": [6, 5], "direction": 150, "share": 0.3, "push": 2}]})";
+             {"type": "counterflow", "min": [2, 2], "max": [6, 5], "direction": 150, "share": 0.3, "push": 2},
+             {"type": "constriction", "center": [7, 3], "width": 1.5, "angle": 10, "strength": 4, "softness": 0.6}]})";
+// The obstacle and the constriction do not steer here (steer 0, where their gradient in steer is
+// still checked): the walking direction they steer by is read as it is, without its derivative.
 // Not in this scene: density_speed, whose density is read as it is (TermPoint), so its window
 // gradient leaves out how the parameters move the people that make the density; its law's own
 // derivatives are checked above.
@@ -130,7 +134,7 @@ const char* kTermScene = R"({"format": "crowdmpm-scenario", "version": 1, "name"
 
 TEST_CASE("force term parameter gradients through a simulated window match central differences", "[terms][gradients]") {
   const ScenarioDef s = ScenarioDef::parse_text(kTermScene);
-  REQUIRE(s.terms.size() == 7);
+  REQUIRE(s.terms.size() == 8);
   // Without the headway adaptation: its min over the people ahead has kinks that differences
   // straddle in a walking crowd (its own adjoint is checked in test_gradients).
   Model model = Model::default_model();

@@ -81,6 +81,7 @@ void track_quality(const TrajectorySet& filmed, const TrajectorySet& tracks, Row
 // The parameter compared for each type, in the report's names.
 const char* compared_param(const std::string& type) {
   if (type == "obstacle") return "radius";
+  if (type == "constriction") return "width";
   if (type == "attractor" || type == "vortex") return "strength";
   if (type == "slow_zone") return "factor";
   return "";
@@ -133,6 +134,9 @@ int main(int argc, char** argv) {
       truth["model"] = suite.at("generator_model");
       if (c.contains("obstacle")) truth["geometry"]["obstacles"].push_back({{"id", "concealed"}, {"circle", c.at("obstacle")}});
       if (c.contains("force")) truth["forces"] = json::array({c.at("force")});
+      // A concealed wall with an opening: its solid pieces; "opening" {center, width} is the truth compared.
+      if (c.contains("walls"))
+        for (const json& w : c.at("walls")) truth["geometry"]["obstacles"].push_back(w);
       // Video: one pass per case (noise -1 in the rows: the renderer's noise and the codec's).
       const std::vector<double> levels = video ? std::vector<double>{-1} : suite.at("noise").get<std::vector<double>>();
       for (double noise : levels) {
@@ -184,6 +188,9 @@ int main(int argc, char** argv) {
         const json report = diagnosis_json(job, r);
         const json& v = report.at("verdict");
         row.verdict = v.at("type");
+        // A wall with an opening is reported as an obstacle of that shape; it is not the round
+        // obstacle a case conceals.
+        if (v.at("params").value("shape", "") == "constriction") row.verdict = "constriction";
         row.finding = row.verdict != "none";
         row.correct = row.verdict == effect;
         row.before = v.at("heldout_error_before");
@@ -192,7 +199,7 @@ int main(int argc, char** argv) {
         row.global_after = v.at("heldout_error_global_after");
         if (row.correct && effect != "none") {
           const json& p = v.at("params");
-          const json& truth_params = c.contains("obstacle") ? c.at("obstacle") : c.at("force");
+          const json& truth_params = c.contains("obstacle") ? c.at("obstacle") : c.contains("opening") ? c.at("opening") : c.at("force");
           if (truth_params.contains("center") && p.contains("x"))
             row.loc_error = std::hypot(p.at("x").get<double>() - truth_params.at("center")[0].get<double>(),
                                        p.at("y").get<double>() - truth_params.at("center")[1].get<double>());

@@ -25,8 +25,37 @@ std::string report_type(const TermLaw* law) {
   const std::string t = law->type();
   if (t == "uniform") return "drift";
   if (t == "radial") return "attractor";
+  if (t == "constriction") return "obstacle";  // an unmodelled solid, of another shape (report_params says which)
   return t;
 }
+
+bool is_constriction(const Term& t) { return std::string(t.law->type()) == "constriction"; }
+// A constriction's unit direction along its wall, (-sin angle, cos angle).
+Vec2 wall_direction(const Term& t) {
+  const double a = t.params[3] * M_PI / 180;
+  return Vec2(-std::sin(a), std::cos(a));
+}
+// The pieces of a constriction's wall, beside its opening, that stand in the walkable space at
+// least `clearance` from the venue's own solids (sampled every 5 cm).
+std::vector<std::pair<Vec2, Vec2>> wall_pieces(const Term& t, const Geometry& geo, double clearance) {
+  const Vec2 c(t.params[0], t.params[1]), along = wall_direction(t);
+  const double half = 0.5 * t.params[2], span = (geo.hi - geo.lo).norm(), step = 0.05;
+  std::vector<std::pair<Vec2, Vec2>> pieces;
+  for (const double k : {1.0, -1.0}) {
+    bool open = false;
+    for (double s = half; s < span; s += step) {
+      const Vec2 q = c + k * s * along;
+      const bool stands = geo.in_domain(q) && geo.sdf(q) > clearance;
+      if (stands && !open) pieces.emplace_back(q, q);
+      if (stands) pieces.back().second = q;
+      open = stands;
+    }
+  }
+  return pieces;
+}
+
+// A term's name in progress lines: its report type, a constriction by its own name.
+std::string progress_name(const Term& t) { return is_constriction(t) ? "constriction" : report_type(t.law); }
 
 // Report names of a term's parameters: {x, y, radius}, {ax, ay}, {xmin, ymin, xmax, ymax, factor}...
 json report_params(const Term& t) {
@@ -35,6 +64,12 @@ json report_params(const Term& t) {
       {"min.x", "xmin"},     {"min.y", "ymin"},     {"max.x", "xmax"},        {"max.y", "ymax"},
       {"from.x", "x0"},      {"from.y", "y0"},      {"to.x", "x1"},           {"to.y", "y1"}};
   json p = json::object();
+  if (is_constriction(t)) {
+    // Reported as an obstacle: (x, y) the opening's centre, where the solid stands on both sides
+    // beyond radius (half the opening), along the wall's line.
+    p["shape"] = "constriction";
+    p["radius"] = 0.5 * t.params[2];
+  }
   const auto names = t.parameter_names();
   for (size_t k = 0; k < names.size(); ++k) {
     auto it = rename.find(names[k]);
@@ -267,6 +302,22 @@ std::vector<Term> initial_candidates(const Cluster& c, const Vec2& global_mean, 
       // people turn are fitted.
       j = {{"type", "obstacle"}, {"center", {c.hole.x(), c.hole.y()}}, {"radius", 0.4}, {"steer", 1},
            {"learn", {"center", "radius", "steer"}}};
+    } else if (type == "constriction") {
+      // A wall across the recorded flow, its opening in line with the region's middle, through
+      // the hole (where the model puts people the recording lacks: beyond the wall), or at the
+      // region's downstream end (people queue before it) where there is no hole.
+      if (c.flow.norm() < 1e-6) continue;
+      const Vec2 n = c.flow.normalized();
+      double downstream = -1e300;
+      for (const Vec2& q : {c.lo, c.hi, Vec2(c.lo.x(), c.hi.y()), Vec2(c.hi.x(), c.lo.y())})
+        downstream = std::max(downstream, (q - c.center).dot(n));
+      if ((c.hole - c.center).norm() > 1e-9) downstream = (c.hole - c.center).dot(n);
+      Vec2 at = c.center + downstream * n;
+      // Back inside the walkable space if that lies in a wall or outside the domain.
+      for (int k = 0; k < 40 && !(geo.in_domain(at) && geo.sdf(at) > 0.1); ++k) at -= 0.1 * n;
+      j = {{"type", "constriction"}, {"center", {at.x(), at.y()}}, {"width", 1.0},
+           {"angle", std::atan2(n.y(), n.x()) * 180 / M_PI}, {"steer", 1},
+           {"learn", {"center", "width", "angle", "steer"}}};
     } else if (type == "drift") {
       const Vec2 a = global_mean / tau;
       j = {{"type", "drift"}, {"acceleration", {clampd(a.x(), -5, 5), clampd(a.y(), -5, 5)}}, {"learn", {"acceleration"}}};
@@ -304,11 +355,18 @@ std::vector<Term> initial_candidates(const Cluster& c, const Vec2& global_mean, 
 // Where a fitted term acts, whose passers-by judge it: within a metre of an obstacle's rim,
 // within an attractor's or vortex's range (at most 3 m), over a zone's extent, along a wall's
 // segment as far out as its drag reaches (twice its decay length and half a metre, at least a
-// metre); everyone for the venue-wide terms.
+// metre), along a constriction's wall near its opening; everyone for the venue-wide terms.
 Reach influence(const Term& t) {
   const std::string type = report_type(t.law);
   const auto& p = t.params;
   const auto disc = [](const Vec2& c, double r) { return Reach{c, c, r}; };
+  if (is_constriction(t)) {
+    // Along the wall's line, as far out as people turn towards the opening (its reach and a
+    // metre, at most 3 m), over the opening and 5 m of wall on each side.
+    const Vec2 c(p[0], p[1]), along = wall_direction(t);
+    const double half = 0.5 * p[2] + 5;
+    return Reach{c - half * along, c + half * along, std::clamp(p[8] + 1.0, 1.0, 3.0)};
+  }
   if (type == "obstacle") return disc(Vec2(p[0], p[1]), p[2] + 1.0);
   if (type == "attractor" || type == "vortex") return disc(Vec2(p[0], p[1]), std::clamp(p[3], 1.0, 3.0));
   if (type == "slow_zone" || type == "counterflow") {
@@ -321,8 +379,20 @@ Reach influence(const Term& t) {
 
 // Why a fitted term cannot be the physics it names (empty if it can): an obstacle must stand in
 // the venue's free space and have a body; one inside a known wall, or of a few centimetres,
-// only reshapes how people meet the walls the venue already has.
+// only reshapes how people meet the walls the venue already has. A constriction's wall must
+// stand in the free space beside its opening.
 std::string implausible(const Term& t, const Geometry& geo) {
+  if (is_constriction(t)) {
+    // Its opening must lie in the walkable space, and its wall must stand in it somewhere
+    // (a wall only inside known solids, or an opening wider than the space, is nothing new).
+    const Vec2 c(t.params[0], t.params[1]);
+    if (!geo.in_domain(c) || geo.sdf(c) <= 0) return "its opening's centre " + point(c) + " lies outside the walkable space";
+    double standing = 0;
+    for (const auto& [a, b] : wall_pieces(t, geo, 0.2)) standing += (b - a).norm();
+    if (standing < 0.3)
+      return "its wall stands in the walkable space over " + num(standing, 2) + " m only (below 0.3 m)";
+    return {};
+  }
   if (report_type(t.law) != "obstacle") return {};
   const Vec2 c(t.params[0], t.params[1]);
   const double r = t.params[2];
@@ -418,7 +488,7 @@ std::string explain(const DiagnoseOptions& o, const DiagnosisResult& r);
 }  // namespace
 
 const std::vector<std::string>& diagnosis_candidates() {
-  static const std::vector<std::string> c = {"obstacle", "drift", "attractor", "vortex", "slow_zone",
+  static const std::vector<std::string> c = {"obstacle", "constriction", "drift", "attractor", "vortex", "slow_zone",
                                              "wall_friction", "density_speed", "counterflow"};
   return c;
 }
@@ -710,7 +780,7 @@ DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& pr
       h.region = region_index;
       std::vector<Term> trial = terms;
       trial.push_back(cand);
-      say("  fitting " + report_type(cand.law) + (c ? " at " + point(c->center) : std::string(" (whole venue)")));
+      say("  fitting " + progress_name(cand) + (c ? " at " + point(c->center) : std::string(" (whole venue)")));
       FitResult f = fit(belief, trial, model, sp, d, d.candidates_lbfgs);
       if (!f.ok) {
         h.term = cand;
@@ -765,7 +835,7 @@ DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& pr
       }
       h.why = why.empty() ? "held-out gain " + num(100 * h.gain, 1) + "% (" + num(h.gain_z, 1) + " standard errors)" : why;
       const bool passes = why.empty();
-      say("    " + report_type(cand.law) + ": region " + num(h.baseline_error, 3) + " -> " + num(region.rms, 3) + " m, " + h.why + values_of(f.model, d.params));
+      say("    " + progress_name(cand) + ": region " + num(h.baseline_error, 3) + " -> " + num(region.rms, 3) + " m, " + h.why + values_of(f.model, d.params));
       res.hypotheses.push_back(h);
       if (passes && (!best || h.heldout_error_global < res.hypotheses[*best].heldout_error_global)) {
         best = res.hypotheses.size() - 1;
@@ -783,7 +853,7 @@ DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& pr
     if (res.terms.size() == 1) {
       res.region = h.judged;
     }
-    say("accepted " + report_type(h.term.law) + ": " + h.why);
+    say("accepted " + progress_name(h.term) + ": " + h.why);
   }
   res.model = model;
   if (!res.terms.empty() && after_terms != res.terms.size()) {
@@ -807,6 +877,9 @@ namespace {
 std::string describe(const Term& t) {
   const std::string type = report_type(t.law);
   const auto& p = t.params;
+  if (is_constriction(t))
+    return "a wall across the flow (heading " + num(p[3], 0) + " degrees) with an opening of " + num(p[2]) + " m at " +
+           point(Vec2(p[0], p[1]));
   if (type == "obstacle") return "an obstacle of radius " + num(p[2]) + " m at " + point(Vec2(p[0], p[1]));
   if (type == "drift") return "a uniform drift of (" + num(p[0]) + ", " + num(p[1]) + ") m/s^2";
   if (type == "attractor")
@@ -832,6 +905,7 @@ std::string describe(const Term& t) {
 std::string what_it_shows(const Term& t) {
   const std::string type = report_type(t.law);
   const auto& p = t.params;
+  if (is_constriction(t)) return "Flow queues and narrows through " + point(Vec2(p[0], p[1])) + "; ";
   if (type == "obstacle") return "Flow slows and splits around " + point(Vec2(p[0], p[1])) + "; ";
   if (type == "drift") return "Everyone is pushed the same way; ";
   if (type == "attractor") return std::string("People are ") + (p[2] >= 0 ? "drawn towards " : "pushed away from ") + point(Vec2(p[0], p[1])) + "; ";
@@ -1003,14 +1077,22 @@ void write_diagnosis(const DiagnoseJob& job, const DiagnosisResult& res, const s
   write_velocity_png((fs::path(out_dir) / "residual_before.png").string(), job.scenario.geo, view,
                      residual_field(r.residual_before, mp), vmax, "residual velocity, fitted baseline (training part)", 1, circles);
   std::vector<std::pair<Vec2, double>> found;
+  std::vector<std::pair<Vec2, Vec2>> walls;
   for (const Term& t : r.terms) {
     const std::string type = report_type(t.law);
-    if (type == "obstacle") found.emplace_back(Vec2(t.params[0], t.params[1]), t.params[2]);
-    else if (type == "attractor" || type == "vortex") found.emplace_back(Vec2(t.params[0], t.params[1]), std::min(t.params[3], 3.0));
+    if (is_constriction(t)) {
+      // Its wall on both sides of the opening, where it stands in the walkable space.
+      for (const auto& piece : wall_pieces(t, job.scenario.geo, 0)) walls.push_back(piece);
+    } else if (type == "obstacle") {
+      found.emplace_back(Vec2(t.params[0], t.params[1]), t.params[2]);
+    } else if (type == "attractor" || type == "vortex") {
+      found.emplace_back(Vec2(t.params[0], t.params[1]), std::min(t.params[3], 3.0));
+    }
   }
   write_velocity_png((fs::path(out_dir) / "residual_after.png").string(), job.scenario.geo, view,
                      residual_field(r.residual_after, mp), vmax,
-                     r.terms.empty() ? "residual velocity: no term accepted" : "residual velocity with the accepted terms", 1, found);
+                     r.terms.empty() ? "residual velocity: no term accepted" : "residual velocity with the accepted terms", 1, found,
+                     walls);
   // The venue with the accepted terms and the refitted model, ready to simulate.
   json sc = ScenarioDef::load_json(job.scenario_path);
   sc["model"] = r.model.to_json();

@@ -90,7 +90,7 @@ ResidualSet recorded_residuals(const ScenarioDef& scenario, const Model& model, 
     for (size_t k = 0; k < s.ids.size(); ++k) {
       if (!finite(end[k]) || !finite(mid[k]) || !finite(sim[0][k])) continue;
       if (near_source(scenario, mid[k], o.source_margin)) continue;
-      out.velocity.push_back({mid[k], tm, (end[k] - sim[0][k]) / h, s.ids[k]});
+      out.velocity.push_back({mid[k], tm, (end[k] - sim[0][k]) / h, s.ids[k], (end[k] - s.x[k]) / h});
       out.positions.push_back({end[k], te, 1.0});
       out.positions.push_back({sim[0][k], te, -1.0});
     }
@@ -130,7 +130,7 @@ ResidualSet null_residuals(const ScenarioDef& scenario, const Model& model, cons
       if (!finite(truth[1][k]) || !finite(truth[0][k]) || !finite(sim[0][k])) continue;
       if (near_source(scenario, truth[0][k], o.source_margin)) continue;
       const Vec2 end = truth[1][k] + noise * normal2();
-      out.velocity.push_back({truth[0][k], tm, (end - sim[0][k]) / h, s.ids[k]});
+      out.velocity.push_back({truth[0][k], tm, (end - sim[0][k]) / h, s.ids[k], (end - seen.x[k]) / h});
       out.positions.push_back({end, te, 1.0});
       out.positions.push_back({sim[0][k], te, -1.0});
     }
@@ -303,13 +303,14 @@ std::vector<Cluster> find_clusters(const ResidualMap& m, const ResidualSet& s, c
   const size_t ncells = static_cast<size_t>(m.nx) * static_cast<size_t>(m.ny);
   for (Cluster& cl : out) {
     const double reach = cl.radius + m.cell;
-    Vec2 sum = Vec2::Zero();
+    Vec2 sum = Vec2::Zero(), flow = Vec2::Zero();
     double n = 0, rad = 0, tan = 0, nrt = 0;
     for (const auto& r : s.velocity) {
       const Vec2 d = r.x - cl.center;
       const double dist = d.norm();
       if (dist > reach) continue;
       sum += r.r;
+      flow += r.moved;
       n += 1;
       if (dist > 1e-6) {
         rad += r.r.dot(d / dist);
@@ -317,7 +318,10 @@ std::vector<Cluster> find_clusters(const ResidualMap& m, const ResidualSet& s, c
         nrt += 1;
       }
     }
-    if (n > 0) cl.mean_residual = sum / n;
+    if (n > 0) {
+      cl.mean_residual = sum / n;
+      cl.flow = flow / n;
+    }
     if (nrt > 0) {
       cl.radial = rad / nrt;
       cl.tangential = tan / nrt;

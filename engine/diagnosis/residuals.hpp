@@ -39,6 +39,7 @@ struct ResidualSample {
   double t = 0;           // s (recording time at the middle)
   Vec2 r = Vec2::Zero();  // m/s
   long id = 0;
+  Vec2 moved = Vec2::Zero();  // the recorded displacement over the rollout / its length, m/s
 };
 // Where people are at a rollout's end: +1 recorded, -1 simulated (the density residual).
 struct PositionSample {
@@ -97,6 +98,7 @@ struct Cluster {
   double statistic = 0;        // sum of z^2
   double significance = 1;     // p-value against the null
   Vec2 mean_residual = Vec2::Zero();  // m/s over its samples
+  Vec2 flow = Vec2::Zero();           // the recorded mean velocity of its samples (ResidualSample::moved), m/s
   Vec2 hole = Vec2::Zero();    // where the model puts people the recording does not have (nearby)
   double radial = 0, tangential = 0;  // mean residual components about the centre (out, counter-clockwise), m/s
   std::vector<size_t> cells;

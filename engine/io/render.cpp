@@ -194,7 +194,8 @@ void write_field_png(const std::string& path, const Geometry& geo, const View& v
 
 void write_velocity_png(const std::string& path, const Geometry& geo, const View& v, const GridVelocityField& f,
                         double vmax, const std::string& text, double arrow_seconds,
-                        const std::vector<std::pair<Vec2, double>>& circles) {
+                        const std::vector<std::pair<Vec2, double>>& circles,
+                        const std::vector<std::pair<Vec2, Vec2>>& segments) {
   if (f.velocity.size() != static_cast<size_t>(f.nx) * f.ny || f.mask.size() != f.velocity.size())
     throw Error(path + ": velocity field arrays do not match its " + std::to_string(f.nx) + " x " + std::to_string(f.ny) + " grid");
   if (!(vmax > 0)) {
@@ -234,6 +235,7 @@ void write_velocity_png(const std::string& path, const Geometry& geo, const View
   draw_geometry(img, v, geo);
   for (const auto& [c, r] : circles)
     cv::circle(img, to_px(v, c), std::max(2, static_cast<int>(std::lround(r * v.ppm))), cv::Scalar(255, 0, 255), 2, cv::LINE_AA);
+  for (const auto& [a, b] : segments) cv::line(img, to_px(v, a), to_px(v, b), cv::Scalar(255, 0, 255), 3, cv::LINE_AA);
   draw_colour_bar(img, v, 0, vmax, "m/s");
   title(img, text);
   write_png(path, img);

@@ -29,10 +29,12 @@ void write_field_png(const std::string& path, const Geometry& geo, const View& v
 // A grid velocity field (video flow, simulation, their difference): speed as a colour map over
 // the nodes its mask keeps (grey elsewhere), an arrow per kept node (length: distance walked in
 // `arrow_seconds`), geometry on top. vmax <= 0: the field's own 95th-percentile speed.
-// circles (centre, radius in m) are outlined in magenta: regions a diagnosis found.
+// circles (centre, radius in m) are outlined in magenta: regions a diagnosis found; segments
+// (ends in m), likewise drawn: walls it found.
 void write_velocity_png(const std::string& path, const Geometry& geo, const View& view, const GridVelocityField& f,
                         double vmax, const std::string& title, double arrow_seconds = 1,
-                        const std::vector<std::pair<Vec2, double>>& circles = {});
+                        const std::vector<std::pair<Vec2, double>>& circles = {},
+                        const std::vector<std::pair<Vec2, Vec2>>& segments = {});
 
 // Paths (polylines of positions) over the venue, each set in its colour (B, G, R), with a legend.
 struct PathSet {

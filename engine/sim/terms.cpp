@@ -12,11 +12,12 @@ const TermLaw* obstacle_term();
 const TermLaw* slow_zone_term();
 const TermLaw* wall_friction_term();
 const TermLaw* counterflow_term();
+const TermLaw* constriction_term();
 
 const std::vector<const TermLaw*>& term_laws() {
   static const std::vector<const TermLaw*> laws = {uniform_term(), radial_term(), vortex_term(), obstacle_term(),
                                                     slow_zone_term(), wall_friction_term(), density_speed_term(),
-                                                    counterflow_term()};
+                                                    counterflow_term(), constriction_term()};
   return laws;
 }
 
