@@ -54,8 +54,9 @@ std::vector<std::pair<Vec2, Vec2>> wall_pieces(const Term& t, const Geometry& ge
   return pieces;
 }
 
-// A term's name in progress lines: its report type, a constriction by its own name.
-std::string progress_name(const Term& t) { return is_constriction(t) ? "constriction" : report_type(t.law); }
+// A term's name within the diagnosis (progress lines, and what each step does with it): its
+// report type, a constriction by its own name (its report type is "obstacle").
+std::string term_name(const Term& t) { return is_constriction(t) ? "constriction" : report_type(t.law); }
 
 // Report names of a term's parameters: {x, y, radius}, {ax, ay}, {xmin, ymin, xmax, ymax, factor}...
 json report_params(const Term& t) {
@@ -309,9 +310,12 @@ std::vector<Term> initial_candidates(const Cluster& c, const Vec2& global_mean, 
       if (c.flow.norm() < 1e-6) continue;
       const Vec2 n = c.flow.normalized();
       double downstream = -1e300;
-      for (const Vec2& q : {c.lo, c.hi, Vec2(c.lo.x(), c.hi.y()), Vec2(c.hi.x(), c.lo.y())})
-        downstream = std::max(downstream, (q - c.center).dot(n));
-      if ((c.hole - c.center).norm() > 1e-9) downstream = (c.hole - c.center).dot(n);
+      if ((c.hole - c.center).norm() > 1e-9) {
+        downstream = (c.hole - c.center).dot(n);
+      } else {
+        for (const Vec2& q : {c.lo, c.hi, Vec2(c.lo.x(), c.hi.y()), Vec2(c.hi.x(), c.lo.y())})
+          downstream = std::max(downstream, (q - c.center).dot(n));
+      }
       Vec2 at = c.center + downstream * n;
       // Back inside the walkable space if that lies in a wall or outside the domain.
       for (int k = 0; k < 40 && !(geo.in_domain(at) && geo.sdf(at) > 0.1); ++k) at -= 0.1 * n;
@@ -357,10 +361,10 @@ std::vector<Term> initial_candidates(const Cluster& c, const Vec2& global_mean, 
 // segment as far out as its drag reaches (twice its decay length and half a metre, at least a
 // metre), along a constriction's wall near its opening; everyone for the venue-wide terms.
 Reach influence(const Term& t) {
-  const std::string type = report_type(t.law);
+  const std::string type = term_name(t);
   const auto& p = t.params;
   const auto disc = [](const Vec2& c, double r) { return Reach{c, c, r}; };
-  if (is_constriction(t)) {
+  if (type == "constriction") {
     // Along the wall's line, as far out as people turn towards the opening (its reach and a
     // metre, at most 3 m), over the opening and 5 m of wall on each side.
     const Vec2 c(p[0], p[1]), along = wall_direction(t);
@@ -382,7 +386,8 @@ Reach influence(const Term& t) {
 // only reshapes how people meet the walls the venue already has. A constriction's wall must
 // stand in the free space beside its opening.
 std::string implausible(const Term& t, const Geometry& geo) {
-  if (is_constriction(t)) {
+  const std::string type = term_name(t);
+  if (type == "constriction") {
     // Its opening must lie in the walkable space, and its wall must stand in it somewhere
     // (a wall only inside known solids, or an opening wider than the space, is nothing new).
     const Vec2 c(t.params[0], t.params[1]);
@@ -393,7 +398,7 @@ std::string implausible(const Term& t, const Geometry& geo) {
       return "its wall stands in the walkable space over " + num(standing, 2) + " m only (below 0.3 m)";
     return {};
   }
-  if (report_type(t.law) != "obstacle") return {};
+  if (type != "obstacle") return {};
   const Vec2 c(t.params[0], t.params[1]);
   const double r = t.params[2];
   if (r < 0.1) return "its radius " + num(r) + " m is below 0.1 m";
@@ -780,7 +785,7 @@ DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& pr
       h.region = region_index;
       std::vector<Term> trial = terms;
       trial.push_back(cand);
-      say("  fitting " + progress_name(cand) + (c ? " at " + point(c->center) : std::string(" (whole venue)")));
+      say("  fitting " + term_name(cand) + (c ? " at " + point(c->center) : std::string(" (whole venue)")));
       FitResult f = fit(belief, trial, model, sp, d, d.candidates_lbfgs);
       if (!f.ok) {
         h.term = cand;
@@ -835,7 +840,7 @@ DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& pr
       }
       h.why = why.empty() ? "held-out gain " + num(100 * h.gain, 1) + "% (" + num(h.gain_z, 1) + " standard errors)" : why;
       const bool passes = why.empty();
-      say("    " + progress_name(cand) + ": region " + num(h.baseline_error, 3) + " -> " + num(region.rms, 3) + " m, " + h.why + values_of(f.model, d.params));
+      say("    " + term_name(cand) + ": region " + num(h.baseline_error, 3) + " -> " + num(region.rms, 3) + " m, " + h.why + values_of(f.model, d.params));
       res.hypotheses.push_back(h);
       if (passes && (!best || h.heldout_error_global < res.hypotheses[*best].heldout_error_global)) {
         best = res.hypotheses.size() - 1;
@@ -853,7 +858,7 @@ DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& pr
     if (res.terms.size() == 1) {
       res.region = h.judged;
     }
-    say("accepted " + progress_name(h.term) + ": " + h.why);
+    say("accepted " + term_name(h.term) + ": " + h.why);
   }
   res.model = model;
   if (!res.terms.empty() && after_terms != res.terms.size()) {
@@ -875,9 +880,9 @@ DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& pr
 
 namespace {
 std::string describe(const Term& t) {
-  const std::string type = report_type(t.law);
+  const std::string type = term_name(t);
   const auto& p = t.params;
-  if (is_constriction(t))
+  if (type == "constriction")
     return "a wall across the flow (heading " + num(p[3], 0) + " degrees) with an opening of " + num(p[2]) + " m at " +
            point(Vec2(p[0], p[1]));
   if (type == "obstacle") return "an obstacle of radius " + num(p[2]) + " m at " + point(Vec2(p[0], p[1]));
@@ -903,9 +908,9 @@ std::string describe(const Term& t) {
 }
 
 std::string what_it_shows(const Term& t) {
-  const std::string type = report_type(t.law);
+  const std::string type = term_name(t);
   const auto& p = t.params;
-  if (is_constriction(t)) return "Flow queues and narrows through " + point(Vec2(p[0], p[1])) + "; ";
+  if (type == "constriction") return "Flow queues and narrows through " + point(Vec2(p[0], p[1])) + "; ";
   if (type == "obstacle") return "Flow slows and splits around " + point(Vec2(p[0], p[1])) + "; ";
   if (type == "drift") return "Everyone is pushed the same way; ";
   if (type == "attractor") return std::string("People are ") + (p[2] >= 0 ? "drawn towards " : "pushed away from ") + point(Vec2(p[0], p[1])) + "; ";
@@ -1079,8 +1084,8 @@ void write_diagnosis(const DiagnoseJob& job, const DiagnosisResult& res, const s
   std::vector<std::pair<Vec2, double>> found;
   std::vector<std::pair<Vec2, Vec2>> walls;
   for (const Term& t : r.terms) {
-    const std::string type = report_type(t.law);
-    if (is_constriction(t)) {
+    const std::string type = term_name(t);
+    if (type == "constriction") {
       // Its wall on both sides of the opening, where it stands in the walkable space.
       for (const auto& piece : wall_pieces(t, job.scenario.geo, 0)) walls.push_back(piece);
     } else if (type == "obstacle") {
