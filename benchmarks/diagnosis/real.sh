@@ -16,7 +16,8 @@ work="$build/diagnosis_real"
 mkdir -p "$work"
 runs=("scenarios/corridor.json $real/fzj_hermes_2009_corridor_uo/uo-180-180-070.txt uo-180-180-070"
       "benchmarks/diagnosis/real/bottleneck_no_gate.json $real/fzj_crowdqueue_2018_bottleneck/030_c_56_h0.txt crowdqueue_030_no_gate"
-      "scenarios/corridor.json $real/fzj_hermes_2009_corridor_uo/uo-180-180-180.txt uo-180-180-180")
+      "scenarios/corridor.json $real/fzj_hermes_2009_corridor_uo/uo-180-180-180.txt uo-180-180-180"
+      "benchmarks/diagnosis/real/bottleneck_ao_no_walls.json $real/fzj_hermes_2009_bottleneck_ao/traj_AO_300.txt ao_300_no_walls")
 for r in "${runs[@]}"; do
   read -r scenario recording name <<< "$r"
   start=$(date +%s)

@@ -10,6 +10,7 @@
 #include <map>
 #include <optional>
 #include <sstream>
+#include <unordered_map>
 
 #include "engine/core/input.hpp"
 #include "engine/core/parallel.hpp"
@@ -19,6 +20,8 @@ namespace crowdmpm {
 namespace {
 
 const double kNan = std::numeric_limits<double>::quiet_NaN();
+// How far along its line from the opening a constriction is judged, and its opening read (m).
+const double kConstrictionSpan = 5;
 
 // Report names of the laws (the and DESIGN.md's vocabulary) and back.
 std::string report_type(const TermLaw* law) {
@@ -289,10 +292,85 @@ Term make_term(const json& j) { return Term::parse(JsonReader(j, "candidate"), {
 
 double clampd(double v, double lo, double hi) { return std::max(lo, std::min(hi, v)); }
 
+// Where the recorded people cross the line through `at` across the flow n (unit), walking with
+// it, up to frame `last` and within `reach` of `at` along the line: the opening they pass
+// through, as its middle and width. Each person counts once, where they last crossed (people
+// shuffling forward in a queue cross a line many times); the crossings' 5th to 95th percentile
+// along the line, taken as 90 % of the lane their centres use, plus a body on each side
+// (centres pass a body radius from a post). Nothing with fewer than 10 people crossing.
+struct Opening {
+  Vec2 center = Vec2::Zero();
+  double width = 0;
+  long crossings = 0;  // people
+  double offset = 0;   // of its line from where the search began, along the flow (m)
+};
+std::optional<Opening> recorded_opening(const TrajectorySet& t, long last, const Vec2& at, const Vec2& n, double reach,
+                                        double body_radius) {
+  const Vec2 e(-n.y(), n.x());
+  std::unordered_map<long, Vec2> previous;
+  std::unordered_map<long, double> crossed;
+  for (const TrackPoint& p : t.points) {  // sorted by frame
+    if (p.frame > last) break;
+    const Vec2 x(p.x, p.y);
+    auto [it, fresh] = previous.try_emplace(p.id, x);
+    if (fresh) continue;
+    const double u0 = (it->second - at).dot(n), u1 = (x - at).dot(n);
+    if (u0 < 0 && u1 >= 0) {
+      const Vec2 cross = it->second + (x - it->second) * (u0 / (u0 - u1));
+      const double along = (cross - at).dot(e);
+      if (std::abs(along) <= reach) crossed[p.id] = along;
+    }
+    it->second = x;
+  }
+  if (crossed.size() < 10) return std::nullopt;
+  std::vector<double> s;
+  s.reserve(crossed.size());
+  for (const auto& [id, along] : crossed) s.push_back(along);
+  auto quantile = [&](double q) {
+    const size_t k = std::min(s.size() - 1, static_cast<size_t>(q * static_cast<double>(s.size())));
+    std::nth_element(s.begin(), s.begin() + static_cast<long>(k), s.end());
+    return s[k];
+  };
+  const double lo = quantile(0.05), hi = quantile(0.95);
+  Opening o;
+  o.center = at + 0.5 * (lo + hi) * e;
+  o.width = (hi - lo) / 0.9 + 2 * body_radius;
+  o.crossings = static_cast<long>(s.size());
+  return o;
+}
+
+// Where the recorded stream across the flow n through `at` is narrowest: of the lines across it
+// every 0.25 m up to 1.5 m either side (in the walkable space), among those that at least half as
+// many people cross as cross the most (recorded_opening, within the span a constriction is judged
+// on), the nearest to `at` whose opening is at most 10 % wider than the narrowest's.
+std::optional<Opening> narrowest_opening(const TrajectorySet& t, long last, const Vec2& at, const Vec2& n,
+                                         const Geometry& geo, double body_radius) {
+  std::vector<Opening> lines;
+  long most = 0;
+  for (int k = -6; k <= 6; ++k) {
+    const Vec2 x = at + 0.25 * k * n;
+    if (!geo.in_domain(x) || geo.sdf(x) <= 0.1) continue;
+    if (auto o = recorded_opening(t, last, x, n, kConstrictionSpan, body_radius)) {
+      o->offset = 0.25 * k;
+      lines.push_back(*o);
+      most = std::max(most, o->crossings);
+    }
+  }
+  lines.erase(std::remove_if(lines.begin(), lines.end(), [&](const Opening& o) { return 2 * o.crossings < most; }),
+              lines.end());
+  double least = std::numeric_limits<double>::infinity();
+  for (const Opening& o : lines) least = std::min(least, o.width);
+  std::optional<Opening> chosen;
+  for (const Opening& o : lines)
+    if (o.width <= 1.1 * least && (!chosen || std::abs(o.offset) < std::abs(chosen->offset))) chosen = o;
+  return chosen;
+}
+
 // The candidates of one region, initialised from what its residuals show (DESIGN.md section 6,
-// step 3). drift is initialised from the whole venue's mean residual.
+// step 3), and a constriction's opening from where the recorded people cross its line up to
+// frame `last`. drift is initialised from the whole venue's mean residual.
 std::vector<Term> initial_candidates(const Cluster& c, const Vec2& global_mean, const Model& m, const Geometry& geo,
-                                     const std::vector<std::string>& types) {
+                                     const TrajectorySet& t, long last, const std::vector<std::string>& types) {
   const double tau = m.params.tau;
   const double range = clampd(2 * c.radius, 1.5, 4);
   std::vector<Term> out;
@@ -319,7 +397,14 @@ std::vector<Term> initial_candidates(const Cluster& c, const Vec2& global_mean, 
       Vec2 at = c.center + downstream * n;
       // Back inside the walkable space if that lies in a wall or outside the domain.
       for (int k = 0; k < 40 && !(geo.in_domain(at) && geo.sdf(at) > 0.1); ++k) at -= 0.1 * n;
-      j = {{"type", "constriction"}, {"center", {at.x(), at.y()}}, {"width", 1.0},
+      // The opening where the recorded stream is narrowest; 1 m wide in line with the region's
+      // middle where too few people cross there.
+      double width = 1.0;
+      if (const auto o = narrowest_opening(t, last, at, n, geo, m.params.body_radius)) {
+        at = o->center;
+        width = clampd(o->width, 0.4, 2 * kConstrictionSpan);
+      }
+      j = {{"type", "constriction"}, {"center", {at.x(), at.y()}}, {"width", width},
            {"angle", std::atan2(n.y(), n.x()) * 180 / M_PI}, {"steer", 1},
            {"learn", {"center", "width", "angle", "steer"}}};
     } else if (type == "drift") {
@@ -368,7 +453,7 @@ Reach influence(const Term& t) {
     // Along the wall's line, as far out as people turn towards the opening (its reach and a
     // metre, at most 3 m), over the opening and 5 m of wall on each side.
     const Vec2 c(p[0], p[1]), along = wall_direction(t);
-    const double half = 0.5 * p[2] + 5;
+    const double half = 0.5 * p[2] + kConstrictionSpan;
     return Reach{c - half * along, c + half * along, std::clamp(p[8] + 1.0, 1.0, 3.0)};
   }
   if (type == "obstacle") return disc(Vec2(p[0], p[1]), p[2] + 1.0);
@@ -772,9 +857,9 @@ DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& pr
     // Each significant region's local candidates, then the venue-wide ones once (judged on everyone).
     std::vector<std::pair<const Cluster*, Term>> trials;
     for (const Cluster* c : significant)
-      for (Term& cand : initial_candidates(*c, loc.global_mean, model, belief.geo, types))
+      for (Term& cand : initial_candidates(*c, loc.global_mean, model, belief.geo, t, sp.train_to, types))
         if (!is_global(cand)) trials.emplace_back(c, std::move(cand));
-    for (Term& cand : initial_candidates(*significant.front(), loc.global_mean, model, belief.geo, types))
+    for (Term& cand : initial_candidates(*significant.front(), loc.global_mean, model, belief.geo, t, sp.train_to, types))
       if (is_global(cand)) trials.emplace_back(nullptr, std::move(cand));
     for (auto& [c, cand] : trials) {
       const int region_index = c ? static_cast<int>(c - loc.clusters.data()) +
