@@ -1,8 +1,10 @@
 #!/usr/bin/env bash
 # Diagnosis of real recordings (docs/diagnosis.md): the Hermes corridor run uo-180-180-070 (an
 # exit constriction of 0.70 m that scenarios/corridor.json lacks), the CrowdQueue run 030 against
-# the bottleneck without its gate (real/bottleneck_no_gate.json), and the control uo-180-180-180
-# (no constriction) against corridor.json. Skips without ../shared/data.
+# the bottleneck without its gate (real/bottleneck_no_gate.json), the control uo-180-180-180
+# (no constriction) against corridor.json, and the Hermes bottleneck AO_300 against its room
+# without the bottleneck's walls (real/bottleneck_ao_no_walls.json; about 30 min alone). Skips
+# without ../shared/data.
 # Usage: benchmarks/diagnosis/real.sh [BUILD_DIR] [crowdmpm diagnose options, e.g. --options JSON]
 # (benchmarks/results/diagnosis_real.md; its older sections: --options '{"density_law": false}')
 set -euo pipefail
