@@ -292,18 +292,19 @@ Term make_term(const json& j) { return Term::parse(JsonReader(j, "candidate"), {
 
 double clampd(double v, double lo, double hi) { return std::max(lo, std::min(hi, v)); }
 
+// An opening the recorded people pass through, read from where they cross a line.
+struct Opening {
+  Vec2 center = Vec2::Zero();
+  double width = 0;
+  long people = 0;    // crossing the line
+  double offset = 0;  // of its line from where the search began, along the flow (m)
+};
 // Where the recorded people cross the line through `at` across the flow n (unit), walking with
 // it, up to frame `last` and within `reach` of `at` along the line: the opening they pass
 // through, as its middle and width. Each person counts once, where they last crossed (people
 // shuffling forward in a queue cross a line many times); the crossings' 5th to 95th percentile
 // along the line, taken as 90 % of the lane their centres use, plus a body on each side
 // (centres pass a body radius from a post). Nothing with fewer than 10 people crossing.
-struct Opening {
-  Vec2 center = Vec2::Zero();
-  double width = 0;
-  long crossings = 0;  // people
-  double offset = 0;   // of its line from where the search began, along the flow (m)
-};
 std::optional<Opening> recorded_opening(const TrajectorySet& t, long last, const Vec2& at, const Vec2& n, double reach,
                                         double body_radius) {
   const Vec2 e(-n.y(), n.x());
@@ -335,7 +336,7 @@ std::optional<Opening> recorded_opening(const TrajectorySet& t, long last, const
   Opening o;
   o.center = at + 0.5 * (lo + hi) * e;
   o.width = (hi - lo) / 0.9 + 2 * body_radius;
-  o.crossings = static_cast<long>(s.size());
+  o.people = static_cast<long>(s.size());
   return o;
 }
 
@@ -353,10 +354,10 @@ std::optional<Opening> narrowest_opening(const TrajectorySet& t, long last, cons
     if (auto o = recorded_opening(t, last, x, n, kConstrictionSpan, body_radius)) {
       o->offset = 0.25 * k;
       lines.push_back(*o);
-      most = std::max(most, o->crossings);
+      most = std::max(most, o->people);
     }
   }
-  lines.erase(std::remove_if(lines.begin(), lines.end(), [&](const Opening& o) { return 2 * o.crossings < most; }),
+  lines.erase(std::remove_if(lines.begin(), lines.end(), [&](const Opening& o) { return 2 * o.people < most; }),
               lines.end());
   double least = std::numeric_limits<double>::infinity();
   for (const Opening& o : lines) least = std::min(least, o.width);
@@ -855,12 +856,13 @@ DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& pr
     std::vector<WindowErrors> best_err;
     FitResult best_fit;
     // Each significant region's local candidates, then the venue-wide ones once (judged on everyone).
-    std::vector<std::pair<const Cluster*, Term>> trials;
+    std::vector<std::pair<const Cluster*, Term>> trials, venue_wide;
     for (const Cluster* c : significant)
-      for (Term& cand : initial_candidates(*c, loc.global_mean, model, belief.geo, t, sp.train_to, types))
+      for (Term& cand : initial_candidates(*c, loc.global_mean, model, belief.geo, t, sp.train_to, types)) {
         if (!is_global(cand)) trials.emplace_back(c, std::move(cand));
-    for (Term& cand : initial_candidates(*significant.front(), loc.global_mean, model, belief.geo, t, sp.train_to, types))
-      if (is_global(cand)) trials.emplace_back(nullptr, std::move(cand));
+        else if (c == significant.front()) venue_wide.emplace_back(nullptr, std::move(cand));
+      }
+    for (auto& v : venue_wide) trials.push_back(std::move(v));
     for (auto& [c, cand] : trials) {
       const int region_index = c ? static_cast<int>(c - loc.clusters.data()) +
                                        static_cast<int>(res.regions.size() - loc.clusters.size())
