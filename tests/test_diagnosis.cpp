@@ -3,6 +3,7 @@
 // gives no finding, the report has the documented shape, and bad requests name their error.
 #include <catch2/catch.hpp>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <filesystem>
 #include <algorithm>
@@ -250,6 +251,56 @@ TEST_CASE("diagnosis from a rendered video: its people are detected and followed
               r.terms[0].params[0], r.terms[0].params[1], r.terms[0].params[2], miss, r.region_before, r.region_after);
   CHECK(miss < 1.0);
   CHECK(r.region_after < 0.9 * r.region_before);
+}
+
+TEST_CASE("diagnosis reads each person's own pace where the baseline fits it better", "[diagnosis]") {
+  // People keeping paces of their own (0.9, 1.3 and 1.7 m/s in three lanes, no one in anyone's
+  // way), as agents of a simulator with individual preferred speeds walk: with everyone at one
+  // speed the baseline cannot fit them, with each at their own it can.
+  const fs::path dir = fs::path(CROWDMPM_BINARY_DIR) / "tests" / "diagnosis" / "paces";
+  fs::create_directories(dir);
+  const std::string belief = (dir / "belief.json").string(), rec = (dir / "paces.txt").string();
+  save_json_file(json::parse(kCorridor), belief);
+  {
+    std::FILE* f = std::fopen(rec.c_str(), "w");
+    std::fprintf(f, "# framerate: 10\n# unit: m\n");
+    uint32_t state = 12345;
+    const auto noise = [&] {  // uniform in [-0.01, 0.01] m
+      state = state * 1664525u + 1013904223u;
+      return 0.02 * (static_cast<double>(state >> 8) / 16777216.0 - 0.5);
+    };
+    for (int frame = 0; frame < 360; ++frame)
+      for (int i = 0; i < 57; ++i) {
+        const int lane = i % 3;
+        const double pace = 0.9 + 0.4 * lane + 0.02 * (i % 5), entered = 0.6 * i;
+        const double x = -1.5 + pace * (0.1 * frame - entered);
+        if (x < -1.5 || x > 15.2) continue;
+        std::fprintf(f, "%d %d %.4f %.4f\n", i + 1, frame, x + noise(), 0.5 + lane + noise());
+      }
+    std::fclose(f);
+  }
+  const json request = {{"scenario", belief},
+                        {"trajectories", rec},
+                        {"options", {{"iterations", 30}, {"null_replicates", 3}, {"threads", 2}, {"max_terms", 0}}}};
+  const DiagnoseJob job = parse_diagnose_job(request);
+  CHECK(job.options.auto_speed);  // the default
+  const DiagnosisResult r = run_diagnosis(job, [](const std::string& s) { std::printf("  %s\n", s.c_str()); });
+  std::printf("paces: baseline validation loss %.4f m2 with everyone at the median free speed, %.4f m2 each at their own\n",
+              r.validation_recording, r.validation_observed);
+  CHECK(r.validation_observed < 0.5 * r.validation_recording);
+  CHECK(!r.recording_speed);
+  CHECK(r.desired_speed == DesiredSpeed::Observed);
+  write_diagnosis(job, r, (dir / "out").string());
+  const json ds = load_json_file((dir / "out" / "report.json").string()).at("desired_speed");
+  CHECK(ds.at("mode") == "observed");
+  CHECK(ds.at("validation_loss_observed_m2").get<double>() == Approx(r.validation_observed));
+  CHECK(ds.at("validation_loss_recording_m2").get<double>() == Approx(r.validation_recording));
+  CHECK(!ds.contains("speed"));  // no typical speed was used
+  // Asked for one reading, the diagnosis keeps it.
+  json fixed = request;
+  fixed["options"]["desired_speed"] = "recording";
+  CHECK(!parse_diagnose_job(fixed).options.auto_speed);
+  CHECK(parse_diagnose_job(fixed).options.recording_speed);
 }
 
 TEST_CASE("diagnosis requests name what is wrong", "[diagnosis]") {

@@ -30,6 +30,13 @@ struct DiagnoseOptions {
   // "explains" that scatter with terms that shrink it (a forward drift with a lower v0_scale).
   // Otherwise residual.desired_speed says ("free", "observed" or "scenario").
   bool recording_speed = true;
+  // "desired_speed": "auto" (the default): the baseline is fitted twice, with "recording" and with
+  // "observed" (each person walks at their own speed at the window's start, times v0_scale), and
+  // the second is kept for everything after only where its validation loss is under half the
+  // first's (kOwnPaceShare in diagnose.cpp): a crowd whose people keep paces of their own (agents
+  // with individual preferred speeds) that one typical speed cannot fit. An observed speed
+  // carries whatever slowed the person, so that reading hides part of a concealed effect.
+  bool auto_speed = true;
   // "density_law" (default true): a crowd material without a speed-density law of its own gets
   // Weidmann's (kWeidmannGamma, kWeidmannMaxDensity) in the baseline, its density_speed_gamma
   // and density_speed_max fitted with the other parameters (DiagnoseJob::density_law_added): a
@@ -127,6 +134,10 @@ struct DiagnosisResult {
   ResidualMap residual_before, residual_after;           // on the training part
   double tracking_noise = 0;          // m, estimated
   SpeedDistribution free_speed;       // of the training part's people, where recording_speed
+  bool recording_speed = true;        // the desired-speed reading used (chosen where auto_speed)
+  DesiredSpeed desired_speed = DesiredSpeed::Scenario;  // the windows' reading (Scenario under recording_speed)
+  // With auto_speed: the baseline fit's validation loss (m^2) with each reading.
+  double validation_recording = std::numeric_limits<double>::quiet_NaN(), validation_observed = std::numeric_limits<double>::quiet_NaN();
   double train_end = 0, heldout_start = 0, heldout_end = 0;  // s
   long train_windows = 0, heldout_windows = 0;
   std::string explanation;
