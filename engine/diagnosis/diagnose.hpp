@@ -22,7 +22,7 @@ struct DiagnoseOptions {
   double window = 3;          // s of each fitting and held-out rollout
   double stride = 1;          // s between their starts
   ResidualOptions residual;
-  // "desired_speed": "recording" (the default): every person of every window (fitting, null and
+  // "desired_speed": "recording" (also the first reading of "auto", below): every person of every window (fitting, null and
   // held-out alike) walks at the recording's typical free speed, the median over the people of
   // the training part (free_speed_distribution), times the fitted v0_scale; residual.desired_speed
   // is then taken as Scenario, with the scenario's groups set to that speed. One person's free speed read

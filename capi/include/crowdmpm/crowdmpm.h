@@ -259,9 +259,12 @@ CMPM_API cmpm_Status cmpm_PredictRecording(const char* request_json, const char*
  *                "baseline_restarts": 0 (up to this many times, the baseline's fit run
  *                again from where it stopped while its validation loss falls by more than 0.1%),
  *                "threads": 1, "seed": 1,
- *                "desired_speed": "recording" (everyone at the median free speed of the
- *                recording's training part; report.json "desired_speed" gives it) | "free"
- *                (each person's own so far) | "observed" | "scenario",
+ *                "desired_speed": "auto" (the baseline fitted with "recording" and with
+ *                "observed", the second kept only where its validation loss is under half the
+ *                first's; report.json "desired_speed" gives the mode and both losses) |
+ *                "recording" (everyone at the median free speed of the recording's training
+ *                part) | "free" (each person's own so far) | "observed" (each person's speed at
+ *                the window's start) | "scenario",
  *                "density_law": true (a crowd material without a speed-density law gets
  *                Weidmann's in the baseline, refitted with it; false: the material as given,
  *                2-5 times faster),
