@@ -101,6 +101,7 @@ TEST_CASE("diagnosis finds a concealed obstacle and writes the documented report
     CHECK(h.at("params").is_object());
     CHECK(h.contains("heldout_error"));
     CHECK(h.contains("score"));
+    CHECK((h.at("fit_start") == "baseline" || h.at("fit_start") == "refitted baseline"));
   }
   REQUIRE(rep.at("terms").size() == 1);
   CHECK(rep.at("terms")[0].at("type") == "obstacle");

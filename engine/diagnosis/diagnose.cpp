@@ -867,10 +867,10 @@ DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& pr
     say("round " + std::to_string(round + 1) + ": " + std::to_string(loc.clusters.size()) + " residual clusters, " +
         std::to_string(significant.size()) + " significant");
     if (significant.empty() || round >= d.max_terms) break;
-    // Every candidate's fit also refits the baseline's parameters from where they stand; what
-    // that alone gains is not the term's. The baseline refitted once more the same way, with no
-    // new term, is the second reference: a candidate is compared with whichever of the two
-    // predicts the people it is judged on better.
+    // Every candidate's fit also refits the baseline's parameters; what that alone gains is not
+    // the term's. The baseline refitted once more the same way, with no new term, is the second
+    // reference: a candidate is compared with whichever of the two predicts the people it is
+    // judged on better.
     std::vector<WindowErrors> refit_err;
     Model refit_model = model;
     {
@@ -887,8 +887,17 @@ DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& pr
       return !b.failed && b.rms < a.rms ? b : a;
     };
     const ErrorStats base_global = reference(everyone);
-    say("  baseline refitted alone: held-out error " + num(base_global.rms, 3) + " m (was " +
-        num(stats_of(base_err, sp.heldout, everyone).rms, 3) + " m)" + values_of(refit_model, d.params));
+    const double before_refit = stats_of(base_err, sp.heldout, everyone).rms;
+    // Where the refit alone predicts everyone clearly better (by min_gain, what a term must gain),
+    // the baseline's fit had stopped short: the candidates start from the refit, or each would
+    // spend its fit on that convergence and its term gain little against the refit. Otherwise
+    // they start from the baseline the regions were found with (a refit that gains little may
+    // still wander off along a flat direction: on an ORCA recording with a concealed gate, tau
+    // 3.7 -> 6.4 s for 1.2 %, a start from which the gate's wall no longer fits).
+    const bool from_refit = !refit_err.empty() && base_global.rms <= before_refit * (1 - d.min_gain);
+    const Model& start = from_refit ? refit_model : model;
+    say("  baseline refitted alone: held-out error " + num(base_global.rms, 3) + " m (was " + num(before_refit, 3) + " m)" +
+        values_of(refit_model, d.params) + (from_refit ? "; candidates start from it" : ""));
     std::optional<size_t> best;
     std::vector<WindowErrors> best_err;
     FitResult best_fit;
@@ -900,17 +909,27 @@ DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& pr
         else if (c == significant.front()) venue_wide.emplace_back(nullptr, std::move(cand));
       }
     for (auto& v : venue_wide) trials.push_back(std::move(v));
+    // Two regions can start the same candidate (the same straight wall's friction, a
+    // constriction on the same line): it is fitted once.
+    std::vector<Term> tried;
     for (auto& [c, cand] : trials) {
+      const Term& fresh = cand;  // (C++17 lambdas cannot capture a structured binding)
+      if (std::any_of(tried.begin(), tried.end(), [&](const Term& u) {
+            return u.law == fresh.law && u.params == fresh.params && u.learn == fresh.learn;
+          }))
+        continue;
+      tried.push_back(cand);
       const int region_index = c ? static_cast<int>(c - loc.clusters.data()) +
                                        static_cast<int>(res.regions.size() - loc.clusters.size())
                                  : -1;
       Hypothesis h;
       h.round = round;
       h.region = region_index;
+      h.from_refit = from_refit;
       std::vector<Term> trial = terms;
       trial.push_back(cand);
       say("  fitting " + term_name(cand) + (c ? " at " + point(c->center) : std::string(" (whole venue)")));
-      FitResult f = fit(belief, trial, model, sp, d, d.candidates_lbfgs);
+      FitResult f = fit(belief, trial, start, sp, d, d.candidates_lbfgs);
       if (!f.ok) {
         h.term = cand;
         h.why = "fit failed: " + f.error;
@@ -1128,7 +1147,7 @@ json diagnosis_json(const DiagnoseJob& job, const DiagnosisResult& r) {
                     {"heldout_error_global", fin(h.heldout_error_global)}, {"baseline_error", fin(h.baseline_error)},
                     {"score", fin(h.score - h.baseline_score)}, {"gain", fin(h.gain)}, {"gain_z", fin(h.gain_z)},
                     {"round", h.round + 1}, {"region", h.region}, {"accepted", h.accepted}, {"reason", h.why},
-                    {"judged_on", reach_json(h.judged)},
+                    {"judged_on", reach_json(h.judged)}, {"fit_start", h.from_refit ? "refitted baseline" : "baseline"},
                     {"term", h.term.to_json()}});
   }
   json terms = json::array();

@@ -64,10 +64,11 @@ struct DiagnoseOptions {
   double learning_rate = 0.05;
   // The baseline's fit is run again from where it stopped (fresh optimiser state and learning
   // rate) while its validation loss falls by more than 0.1%, at most this many times: one run of
-  // `iterations` minibatch steps often stops short of the parameters a second run finds, and a
-  // candidate's fit, which continues from the baseline, is then credited with part of the rest
-  // of the baseline's convergence. Off by default: with 3 the suite at 0.02 m found the same
-  // effects as with one fit (benchmarks/results/diagnosis.md); the other levels are not measured.
+  // `iterations` minibatch steps often stops short of the parameters a second run finds. Each
+  // round's candidates start from the round's refitted baseline (one more run of the fit) where
+  // that predicts the held-out part by min_gain better, which takes up much of that. Off by
+  // default: with 3 the suite at 0.02 m found the same effects as with one fit
+  // (benchmarks/results/diagnosis.md); the other levels are not measured.
   int baseline_restarts = 0;
   // How the baseline's parameters are fitted ("baseline_optimizer") and how every candidate term
   // and the round's refitted baseline are ("optimizer"): "adam" (minibatches of 4 windows, the
@@ -119,6 +120,7 @@ struct Hypothesis {
   double baseline_error = 0;          // the baseline's regional error it is compared with, m
   double gain = 0, gain_z = 0, score = 0, baseline_score = 0;
   bool accepted = false;
+  bool from_refit = false;            // its fit started from the round's refitted baseline
   std::string why;                    // why it was accepted or not
 };
 
