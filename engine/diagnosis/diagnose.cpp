@@ -909,15 +909,18 @@ DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& pr
         else if (c == significant.front()) venue_wide.emplace_back(nullptr, std::move(cand));
       }
     for (auto& v : venue_wide) trials.push_back(std::move(v));
-    // Two regions can start the same candidate (the same straight wall's friction, a
-    // constriction on the same line): it is fitted once.
+    // Two regions can start the same candidate (the same straight wall's friction, its ends
+    // found from two points a step of 0.25 m apart): it is fitted once.
     std::vector<Term> tried;
+    const auto same_start = [](const Term& a, const Term& b) {
+      if (a.law != b.law || a.params.size() != b.params.size() || a.learn != b.learn) return false;
+      for (size_t k = 0; k < a.params.size(); ++k)
+        if (!(std::abs(a.params[k] - b.params[k]) <= 0.25)) return false;
+      return true;
+    };
     for (auto& [c, cand] : trials) {
       const Term& fresh = cand;  // (C++17 lambdas cannot capture a structured binding)
-      if (std::any_of(tried.begin(), tried.end(), [&](const Term& u) {
-            return u.law == fresh.law && u.params == fresh.params && u.learn == fresh.learn;
-          }))
-        continue;
+      if (std::any_of(tried.begin(), tried.end(), [&](const Term& u) { return same_start(u, fresh); })) continue;
       tried.push_back(cand);
       const int region_index = c ? static_cast<int>(c - loc.clusters.data()) +
                                        static_cast<int>(res.regions.size() - loc.clusters.size())
