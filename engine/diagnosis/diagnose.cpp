@@ -584,6 +584,12 @@ const std::vector<std::string>& diagnosis_candidates() {
   return c;
 }
 
+namespace {
+// straight_wall follows a wall in steps of this length (m), so the ends it finds from two points
+// of one wall differ by up to a step; candidates starting that close are one (run_diagnosis).
+constexpr double kWallStep = 0.25;
+}  // namespace
+
 std::optional<std::pair<Vec2, Vec2>> straight_wall(const Geometry& geo, const Vec2& x) {
   const Vec2 n = geo.normal(x);
   if (!n.allFinite() || n.squaredNorm() < 0.5) return std::nullopt;
@@ -595,7 +601,7 @@ std::optional<std::pair<Vec2, Vec2>> straight_wall(const Geometry& geo, const Ve
     return std::abs(geo.sdf(probe) - 0.1) < 0.03 && m.allFinite() && m.dot(n) > 0.95;
   };
   if (!continues(on)) return std::nullopt;
-  const double step = 0.25, longest = 500;
+  const double step = kWallStep, longest = 500;
   double back = 0, ahead = 0;
   while (back < longest && continues(on - (back + step) * t)) back += step;
   while (ahead < longest && continues(on + (ahead + step) * t)) ahead += step;
@@ -910,17 +916,17 @@ DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& pr
       }
     for (auto& v : venue_wide) trials.push_back(std::move(v));
     // Two regions can start the same candidate (the same straight wall's friction, its ends
-    // found from two points a step of 0.25 m apart): it is fitted once.
+    // found from two points up to a wall step apart): it is fitted once.
     std::vector<Term> tried;
-    const auto same_start = [](const Term& a, const Term& b) {
-      if (a.law != b.law || a.params.size() != b.params.size() || a.learn != b.learn) return false;
-      for (size_t k = 0; k < a.params.size(); ++k)
-        if (!(std::abs(a.params[k] - b.params[k]) <= 0.25)) return false;
-      return true;
-    };
     for (auto& [c, cand] : trials) {
       const Term& fresh = cand;  // (C++17 lambdas cannot capture a structured binding)
-      if (std::any_of(tried.begin(), tried.end(), [&](const Term& u) { return same_start(u, fresh); })) continue;
+      const auto same_start = [&](const Term& u) {
+        if (u.law != fresh.law || u.params.size() != fresh.params.size() || u.learn != fresh.learn) return false;
+        for (size_t k = 0; k < u.params.size(); ++k)
+          if (!(std::abs(u.params[k] - fresh.params[k]) <= kWallStep)) return false;
+        return true;
+      };
+      if (std::any_of(tried.begin(), tried.end(), same_start)) continue;
       tried.push_back(cand);
       const int region_index = c ? static_cast<int>(c - loc.clusters.data()) +
                                        static_cast<int>(res.regions.size() - loc.clusters.size())
