@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "engine/analysis/fields.hpp"
+#include "engine/core/output.hpp"
 #include "engine/diagnosis/diagnose.hpp"
 #include "engine/sim/simulation.hpp"
 #include "engine/predict/predict.hpp"
@@ -57,6 +58,17 @@ std::mutex g_registry_mutex;  // guards g_slots (never held while waiting for a 
 std::vector<Slot> g_slots;
 
 [[noreturn]] void fail(cmpm_Status s, const std::string& msg) { throw ApiError{s, msg}; }
+
+// An output path that cannot be written is the caller's argument, found before the work that
+// would fill it (core/output.hpp).
+template <class Check>
+void writable_output(Check check) {
+  try {
+    check();
+  } catch (const Error& e) {
+    fail(CMPM_ERROR_INVALID_ARGUMENT, e.what());
+  }
+}
 
 // Sets the thread's message; never throws (out of memory while building it leaves a fixed text).
 void set_error(const char* fn, const char* prefix, const char* what) noexcept {
@@ -559,6 +571,7 @@ cmpm_Status cmpm_TrainModel(const char* request_json, const char* out_model_path
   return guard("cmpm_TrainModel", CMPM_ERROR_INVALID_INPUT, [&] {
     const json j = job_request(request_json, out_model_path, "out_model_path", "<train request>");
     const TrainJob job = parse_train_job(j);
+    writable_output([&] { check_output_file(out_model_path, "model file"); });
     const TrainResult r = train_model(job.data, job.start, job.options);
     save_model(describe_learned(job, r), out_model_path);
   });
@@ -568,6 +581,7 @@ cmpm_Status cmpm_PredictRecording(const char* request_json, const char* out_json
   return guard("cmpm_PredictRecording", CMPM_ERROR_INVALID_INPUT, [&] {
     const json j = job_request(request_json, out_json_path, "out_json_path", "<predict request>");
     const PredictJob job = parse_predict_job(j);
+    writable_output([&] { check_output_file(out_json_path, "prediction file"); });
     save_json_file(prediction_json(job, run_prediction(job)), out_json_path);
   });
 }
@@ -576,6 +590,7 @@ cmpm_Status cmpm_Diagnose(const char* request_json, const char* out_dir) {
   return guard("cmpm_Diagnose", CMPM_ERROR_INVALID_INPUT, [&] {
     const json j = job_request(request_json, out_dir, "out_dir", "<diagnose request>");
     const DiagnoseJob job = parse_diagnose_job(j);
+    writable_output([&] { prepare_output_folder(out_dir, "output folder"); });
     write_diagnosis(job, run_diagnosis(job), out_dir);
   });
 }

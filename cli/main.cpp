@@ -10,6 +10,7 @@
 #include <cmath>
 #include <filesystem>
 
+#include "engine/core/output.hpp"
 #include "engine/run/runner.hpp"
 #include "engine/diagnosis/diagnose.hpp"
 #include "engine/predict/predict.hpp"
@@ -670,6 +671,7 @@ int cmd_predict(const Args& a) {
   const PredictOptions& o = job.options;
   const std::vector<Model>& models = job.models;
   const WindowOptions wo{a.threads, desired_speed_of(a)};
+  if (!a.out.empty()) prepare_output_folder(a.out);
   const std::vector<PredictionReport> reports = run_prediction(job);
   std::printf("%s: %zu people, %.1f s at %g fps; %ld windows of %g s; desired speed %s\n", a.trajectories.c_str(),
               t.person_count(), t.duration(), t.framerate, reports[0].windows, o.horizon, a.desired_speed.c_str());
@@ -682,7 +684,6 @@ int cmd_predict(const Args& a) {
     std::printf("  %8.3f\n", r.horizons.back().grid_velocity_rms);
   }
   if (!a.out.empty()) {
-    std::filesystem::create_directories(a.out);
     save_json_file(prediction_json(job, reports), a.out + "/prediction.json");
     // Paths of the first window: recorded, constant velocity, the first model given (else the default).
     long f0 = t.frame_min() + std::lround(o.observe * t.framerate);
@@ -789,6 +790,7 @@ int cmd_train_video(const Args& a) {
 }
 
 int cmd_predict_video(const Args& a) {
+  if (!a.out.empty()) prepare_output_folder(a.out);
   const VideoData d = load_video_data(a);
   std::vector<Model> models{d.venue.model_or_default()};
   for (const auto& p : a.models) models.push_back(Model::load(p, a.input));
@@ -810,9 +812,6 @@ int cmd_predict_video(const Args& a) {
     std::printf("\n");
   }
   if (!a.out.empty()) {
-    std::error_code ec;
-    std::filesystem::create_directories(a.out, ec);
-    if (ec) throw Error(a.out + ": cannot create folder (" + ec.message() + ")");
     save_json_file(json{{"video", a.video.path}, {"fields", d.fields.flow.fields.size()}, {"start", d.split}, {"end", end},
                         {"camera_glitches", glitches}, {"fps", d.fields.flow.info.fps}, {"unit", "m2/s2"},
                         {"methods", video_prediction_json(preds)}},
@@ -827,10 +826,7 @@ int cmd_train(const Args& a) {
   if (a.out.empty()) usage_error("train needs --out MODEL.json");
   if (!a.positional.empty()) usage_error("train takes no positional arguments (got '" + a.positional[0] + "')");
   if (a.models.size() > 1) usage_error("train takes one --model (the starting point)");
-  {
-    const std::filesystem::path dir = std::filesystem::absolute(a.out).parent_path();
-    if (!std::filesystem::is_directory(dir)) throw Error("cannot write " + a.out + ": folder " + dir.string() + " does not exist");
-  }
+  check_output_file(a.out, "model file");
   if (!a.video.path.empty()) return cmd_train_video(a);
   if (a.datasets.empty()) usage_error("train needs --scenario S --trajectories T [T...]");
   // The same request a program sends through the C ABI (cmpm_TrainModel), checked by the same
@@ -917,10 +913,8 @@ int cmd_render_video(const Args& a) {
   ScenarioDef sd = ScenarioDef::load(a.positional[0], a.input);
   Model m = !a.model.empty() ? Model::load(a.model, a.input) : sd.model_or_default();
   Simulation sim(sd, m, a.threads);
+  prepare_output_folder(a.out);
   for (double t = 0; t + 0.5 * sd.dt < a.settle; t += sd.dt) sim.step();
-  std::error_code ec;
-  std::filesystem::create_directories(a.out, ec);
-  if (ec) throw Error(a.out + ": cannot create folder (" + ec.message() + ")");
   RenderOptions ro;
   ro.camera.tilt_deg = a.tilt;
   ro.camera.width = a.width;
@@ -968,6 +962,7 @@ int cmd_diagnose(const Args& a) {
   }
   if (!a.model.empty()) request["model"] = a.model;
   const DiagnoseJob job = parse_diagnose_job(request);
+  prepare_output_folder(a.out);  // before the minutes of work, not after
   std::printf("%s: %zu %s, %.1f s at %g fps, in %s\n", job.trajectories_path.c_str(), job.recording.person_count(),
               video ? "tracks" : "people", job.recording.duration(), job.recording.framerate, a.scenario.c_str());
   const DiagnosisResult r = run_diagnosis(job, [&](const std::string& line) {

@@ -167,6 +167,16 @@ contains "diagnose without --observed" "diagnose needs --scenario and a recordin
 check "diagnose unknown candidate" 1 "$cli" diagnose --scenario "$src/scenarios/bottleneck.json" --observed "$work/sim/trajectories.txt" \
   --out "$work/diag2" --candidates ghost
 contains "diagnose unknown candidate" 'options.candidates[0]: unknown candidate "ghost"'
+# An output that cannot be written is refused before the work (a file stands where the folder goes).
+check "diagnose output folder in the way" 1 "$cli" diagnose --scenario "$src/scenarios/bottleneck.json" \
+  --observed "$work/sim/trajectories.txt" --out "$work/sim/trajectories.txt"
+contains "diagnose output folder in the way" "cannot use as the output folder: a file of that name is in the way"
+check "predict output under a file" 1 "$cli" predict --trajectories "$work/sim/trajectories.txt" --scenario "$src/scenarios/bottleneck.json" \
+  --observe 2 --horizon 2 --out "$work/sim/trajectories.txt/pred"
+contains "predict output under a file" "cannot create the output folder"
+check "train model file is a folder" 1 "$cli" train --scenario "$src/scenarios/bottleneck.json" --trajectories "$work/sim/trajectories.txt" \
+  --out "$work"
+contains "train model file is a folder" "cannot write the model file: it is a folder"
 check "diagnose --video without calibration" 2 "$cli" diagnose --scenario "$src/scenarios/bottleneck.json" --video "$work/sim/particles.mp4" \
   --out "$work/diag2"
 contains "diagnose --video without calibration" "diagnose --video needs --calibration CAL or --scale S"

@@ -13,6 +13,7 @@
 #include <unordered_map>
 
 #include "engine/core/input.hpp"
+#include "engine/core/output.hpp"
 #include "engine/core/parallel.hpp"
 #include "engine/io/render.hpp"
 
@@ -1213,9 +1214,7 @@ json diagnosis_json(const DiagnoseJob& job, const DiagnosisResult& r) {
 
 void write_diagnosis(const DiagnoseJob& job, const DiagnosisResult& res, const std::string& out_dir) {
   namespace fs = std::filesystem;
-  std::error_code ec;
-  fs::create_directories(out_dir, ec);
-  if (ec) throw Error(out_dir + ": cannot create the output folder: " + ec.message());
+  prepare_output_folder(out_dir);
   const DiagnosisResult& r = res;
   const std::string& text = r.explanation;
   save_json_file(diagnosis_json(job, r), (fs::path(out_dir) / "report.json").string());

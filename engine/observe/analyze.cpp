@@ -8,6 +8,7 @@
 #include <set>
 
 #include "engine/core/error.hpp"
+#include "engine/core/output.hpp"
 #include "engine/geometry/shape.hpp"
 #include "engine/io/render.hpp"
 #include "engine/sim/scenario.hpp"
@@ -118,9 +119,7 @@ AnalysisSpec AnalysisSpec::from_scenario(const std::string& path, const InputPol
 }
 
 json run_analysis(const TrajectorySet& t, const AnalysisSpec& spec, const std::string& out_dir) {
-  std::error_code ec;
-  fs::create_directories(out_dir, ec);
-  if (ec) throw Error(out_dir + ": cannot create output folder: " + ec.message());
+  prepare_output_folder(out_dir);
   auto file = [&](const std::string& name) { return (fs::path(out_dir) / name).string(); };
   if (t.points.empty()) throw Error(t.source + ": no trajectory rows to analyze");
   const auto [lo, hi] = t.bounds();

@@ -7,6 +7,7 @@
 #include <fstream>
 #include <memory>
 
+#include "engine/core/output.hpp"
 #include "engine/io/jupedsim_sqlite.hpp"
 #include "engine/io/render.hpp"
 #include "engine/sim/snapshot.hpp"
@@ -92,9 +93,7 @@ RunSummary run_simulation(Simulation& sim, const RunOptions& opt) {
     return p;
   };
   if (files) {
-    std::error_code ec;
-    fs::create_directories(opt.out_dir, ec);
-    if (ec) throw Error(opt.out_dir + ": cannot create output folder: " + ec.message());
+    prepare_output_folder(opt.out_dir);
     if (s.outputs.trajectories)
       traj = std::make_unique<TrajectoryWriter>(file("trajectories.txt"), s.output_rate,
                                                 "crowdmpm simulate " + s.source + " (scenario \"" + s.name + "\")");

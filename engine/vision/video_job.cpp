@@ -10,6 +10,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "engine/core/error.hpp"
+#include "engine/core/output.hpp"
 #include "engine/io/render.hpp"
 
 namespace crowdmpm {
@@ -106,9 +107,7 @@ void write_frame_flow(const std::string& path, const cv::Mat& grey, const cv::Ma
 }  // namespace
 
 json run_flow_job(const VideoSource& src, const ScenarioDef* scenario, const std::string& dir, const FlowProgress& progress) {
-  std::error_code ec;
-  std::filesystem::create_directories(dir, ec);
-  if (ec) throw Error(dir + ": cannot create folder (" + ec.message() + ")");
+  prepare_output_folder(dir);
   const VideoInfo info = probe_video(src.path, src.video);
   const long total = src.video.count > 0 ? src.video.count : std::max(2L, info.frames - src.video.first);
   const size_t middle = static_cast<size_t>(std::max(0L, (total - 2) / 2));

@@ -386,6 +386,13 @@ static void test_train(void) {
   snprintf(request, sizeof request,
            "{\"datasets\": [{\"scenario\": \"%s\", \"trajectories\": [\"%s\"]}], \"options\": {\"params\": [\"nonsense\"]}}", scen, traj);
   CHECK_FAILS(cmpm_TrainModel(request, model), CMPM_ERROR_INVALID_INPUT, "nonsense");
+  /* An output that cannot be written fails before the work, naming it. */
+  snprintf(request, sizeof request,
+           "{\"datasets\": [{\"scenario\": \"%s\", \"trajectories\": [\"%s\"]}], \"options\": {\"window\": 1, \"iterations\": 2}}",
+           scen, traj);
+  CHECK_FAILS(cmpm_TrainModel(request, "."), CMPM_ERROR_INVALID_ARGUMENT, "is a folder");
+  snprintf(request, sizeof request, "{\"scenario\": \"%s\", \"trajectories\": \"%s\", \"observe\": 2, \"horizon\": 3}", scen, traj);
+  CHECK_FAILS(cmpm_PredictRecording(request, "capi_walkers.txt/prediction.json"), CMPM_ERROR_INVALID_ARGUMENT, "does not exist");
   /* Diagnosis of the same recording in its venue: the report and its pictures, and bad requests. */
   snprintf(request, sizeof request,
            "{\"scenario\": \"%s\", \"trajectories\": \"%s\", \"options\": {\"window\": 1, \"iterations\": 2, "
@@ -409,6 +416,7 @@ static void test_train(void) {
   }
   CHECK_FAILS(cmpm_Diagnose(NULL, "capi_diagnosis"), CMPM_ERROR_INVALID_ARGUMENT, "request_json");
   CHECK_FAILS(cmpm_Diagnose(request, NULL), CMPM_ERROR_INVALID_ARGUMENT, "out_dir");
+  CHECK_FAILS(cmpm_Diagnose(request, traj), CMPM_ERROR_INVALID_ARGUMENT, "in the way"); /* a file where the folder goes */
   CHECK_FAILS(cmpm_Diagnose("{\"scenario\": ", "capi_diagnosis"), CMPM_ERROR_INVALID_INPUT, "invalid JSON");
   snprintf(request, sizeof request, "{\"scenario\": \"%s\", \"trajectories\": \"%s\", \"options\": {\"candidates\": [\"ghost\"]}}",
            scen, traj);

@@ -216,7 +216,9 @@ CMPM_API cmpm_Status cmpm_World_LoadTraction(cmpm_WorldId world, const char* tra
  * Relative paths resolve from the working directory. Blocks until training ends (seconds to
  * minutes); the result does not depend on "threads". CMPM_ERROR_INVALID_INPUT for a request,
  * scenario, model or recording that does not parse or validate (the message names the JSON
- * path, or the file and line), or recordings too short for training and validation windows. */
+ * path, or the file and line), or recordings too short for training and validation windows.
+ * CMPM_ERROR_INVALID_ARGUMENT when out_model_path is a folder or its folder is missing or takes
+ * no new file: checked after the request is read and before training, not after. */
 CMPM_API cmpm_Status cmpm_TrainModel(const char* request_json, const char* out_model_path);
 
 /* Prediction (docs/learning.md), as `crowdmpm predict`: rolls a recording's observed states
@@ -227,7 +229,8 @@ CMPM_API cmpm_Status cmpm_TrainModel(const char* request_json, const char* out_m
  *    "stride": (horizon), "windows": 0 (all), "threads": 1, "desired_speed": "observed" | "scenario" | "free",
  *    "input": {"max_bytes": 268435456, "allow_outside_paths": false}}
  * CMPM_ERROR_INVALID_INPUT as for cmpm_TrainModel, and when observe + horizon exceed the
- * recording. */
+ * recording; CMPM_ERROR_INVALID_ARGUMENT for an out_json_path that cannot be written (as
+ * cmpm_TrainModel's out_model_path, checked before the predictions). */
 CMPM_API cmpm_Status cmpm_PredictRecording(const char* request_json, const char* out_json_path);
 
 /* Diagnosis (docs/diagnosis.md), as `crowdmpm diagnose`: fits the model on the recording's
@@ -272,7 +275,9 @@ CMPM_API cmpm_Status cmpm_PredictRecording(const char* request_json, const char*
  *    "input": {"max_bytes": 268435456, "allow_outside_paths": false}}
  * Blocks for seconds to minutes; the result does not depend on "threads".
  * CMPM_ERROR_INVALID_INPUT as for cmpm_TrainModel, and for recordings too short to split into
- * fitting and held-out windows. */
+ * fitting and held-out windows; CMPM_ERROR_INVALID_ARGUMENT when out_dir cannot be created or
+ * takes no new file (a file of that name in the way, a read-only parent), checked after the
+ * request is read and before the diagnosis runs. */
 CMPM_API cmpm_Status cmpm_Diagnose(const char* request_json, const char* out_dir);
 
 #ifdef __cplusplus
