@@ -41,6 +41,35 @@ TEST_CASE("trajectory text: errors name file and line", "[trajectories]") {
   CHECK_THROWS_WITH(TrajectorySet::parse("# framerate: 10\n1.5 0 1 2\n", "e.txt"), Catch::Contains("whole numbers"));
 }
 
+TEST_CASE("a recording at the wrong scale for its venue is refused with the units that fit", "[trajectories]") {
+  Geometry venue;  // a 10 m x 4 m corridor
+  venue.lo = Vec2(0, 0);
+  venue.hi = Vec2(10, 4);
+  // Six people 0.8 m apart walking along it, written in centimetres.
+  std::string cm = "# framerate: 10\n";
+  for (int f = 0; f < 20; ++f)
+    for (int id = 1; id <= 6; ++id)
+      cm += std::to_string(id) + " " + std::to_string(f) + " " + std::to_string(100 + 80 * id + 5 * f) + " " + std::to_string(100 + 40 * (id % 2)) + "\n";
+  const TrajectorySet read_as_m = TrajectorySet::parse(cm, "people_cm.txt");
+  CHECK_THROWS_WITH(check_recording_scale(read_as_m, venue, "corridor.json"),
+                    Catch::Contains("people_cm.txt: 100% of its positions lie outside the domain of corridor.json") &&
+                        Catch::Contains("fit the venue as centimetres"));
+  const TrajectorySet right = TrajectorySet::parse("# unit: cm\n" + cm, "people_cm.txt");
+  CHECK_NOTHROW(check_recording_scale(right, venue, "corridor.json"));
+  // The same numbers divided by 100 and then said to be centimetres: inside the venue, 8 mm apart.
+  std::string m = "# framerate: 10\n# unit: cm\n";
+  for (const TrackPoint& p : right.points)
+    m += std::to_string(p.id) + " " + std::to_string(p.frame) + " " + std::to_string(p.x) + " " + std::to_string(p.y) + "\n";
+  const TrajectorySet shrunk = TrajectorySet::parse(m, "people_m.txt");
+  CHECK_THROWS_WITH(check_recording_scale(shrunk, venue, "corridor.json"),
+                    Catch::Contains("closer than bodies allow") && Catch::Contains("fit the venue as metres"));
+  // Another venue altogether: no unit fits.
+  Geometry far = venue;
+  far.lo = Vec2(100, 100);
+  far.hi = Vec2(110, 104);
+  CHECK_THROWS_WITH(check_recording_scale(right, far, "elsewhere.json"), Catch::Contains("a recording of another venue"));
+}
+
 // Issue 13: a frame of 1e30 is a whole number >= 2^63; it used to be cast to long out of range
 // (undefined behaviour: it came out negative, passed "frame >= 0", and duration() overflowed).
 TEST_CASE("trajectory text: ids and frames beyond the range of long are refused", "[trajectories]") {

@@ -683,6 +683,7 @@ DiagnoseJob parse_diagnose_job(const json& request, const std::string& base_dir)
   if (r.has("trajectories")) {
     job.trajectories_path = resolve_path(base_dir, r.string("trajectories", std::nullopt));
     job.recording = TrajectorySet::read(job.trajectories_path, 0, input);
+    check_recording_scale(job.recording, job.scenario.geo, job.scenario.source);
   } else {
     read_video_recording(r.at("video"), base_dir, input, job);
   }

@@ -748,6 +748,7 @@ TrainJob parse_train_job(const json& request, const std::string& base_dir) {
     for (size_t k = 0; k < ts.size(); ++k) {
       const std::string f = resolve_path(base_dir, ts.item(k).as_string());
       set.recordings.push_back(TrajectorySet::read(f, 0, job.input));
+      check_recording_scale(set.recordings.back(), set.scenario.geo, set.scenario.source);
       job.files.push_back(f);
     }
     job.data.push_back(std::move(set));

@@ -4,9 +4,73 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <unordered_map>
 
 namespace crowdmpm {
+
+namespace {
+// The median, over frames with two people or more (at most about 200 of them, evenly spread), of
+// the median distance from each person to their nearest neighbour; 0 when no frame has two.
+double median_neighbour_distance(const TrajectorySet& t) {
+  std::vector<long> frames;
+  for (long f = t.frame_min(); f <= t.frame_max(); f = t.skip_gap(f + 1, 1)) frames.push_back(f);
+  const size_t step = std::max<size_t>(1, frames.size() / 200);
+  std::vector<double> medians;
+  for (size_t k = 0; k < frames.size(); k += step) {
+    const auto [a, b] = t.frame(frames[k]);
+    const long n = b - a;
+    if (n < 2 || n > 2000) continue;
+    std::vector<double> nearest;
+    for (const TrackPoint* p = a; p != b; ++p) {
+      double d2 = std::numeric_limits<double>::infinity();
+      for (const TrackPoint* q = a; q != b; ++q)
+        if (q != p) d2 = std::min(d2, (p->x - q->x) * (p->x - q->x) + (p->y - q->y) * (p->y - q->y));
+      nearest.push_back(std::sqrt(d2));
+    }
+    std::nth_element(nearest.begin(), nearest.begin() + static_cast<long>(nearest.size() / 2), nearest.end());
+    medians.push_back(nearest[nearest.size() / 2]);
+  }
+  if (medians.empty()) return 0;
+  std::nth_element(medians.begin(), medians.begin() + static_cast<long>(medians.size() / 2), medians.end());
+  return medians[medians.size() / 2];
+}
+}  // namespace
+
+void check_recording_scale(const TrajectorySet& t, const Geometry& geo, const std::string& venue) {
+  if (t.points.empty()) return;
+  // The share of the positions inside the domain with the file's numbers read `scale` times
+  // larger than they were.
+  auto inside_share = [&](double scale) {
+    size_t in = 0;
+    for (const TrackPoint& q : t.points) in += geo.in_domain(scale * Vec2(q.x, q.y)) ? 1 : 0;
+    return static_cast<double>(in) / static_cast<double>(t.points.size());
+  };
+  const double spacing = median_neighbour_distance(t);
+  // Units that would fit: most positions inside the venue and people spaced as bodies allow.
+  auto hint = [&](const std::string& otherwise) {
+    for (const auto& [scale, unit] : {std::pair<double, const char*>{0.01, "centimetres"}, {0.001, "millimetres"},
+                                      {100, "metres (its header's unit makes them 100 times smaller)"},
+                                      {1000, "metres (its header's unit makes them 1000 times smaller)"}})
+      if (inside_share(scale) >= 0.9 && (spacing == 0 || scale * spacing >= kMinBodySpacing))
+        return std::string("its numbers fit the venue as ") + unit + ": state the unit in its header (\"# unit: cm\", \"mm\" or \"m\")";
+    return otherwise;
+  };
+  const double inside = inside_share(1);
+  if (inside < 0.5) {
+    const auto [lo, hi] = t.bounds();
+    auto box = [](const Vec2& a, const Vec2& b) {
+      return "[" + format_number(a.x()) + ", " + format_number(b.x()) + "] x [" + format_number(a.y()) + ", " + format_number(b.y()) + "] m";
+    };
+    throw Error(t.source + ": " + format_number(std::round(1000 * (1 - inside)) / 10) + "% of its positions lie outside the domain of " + venue +
+                ", " + box(geo.lo, geo.hi) + " (the recording spans " + box(lo, hi) + "): " +
+                hint("a recording of another venue, or in other units than its header states (\"# unit: cm\" or mm; metres when none)"));
+  }
+  if (spacing > 0 && spacing < kMinBodySpacing)
+    throw Error(t.source + ": its people stand " + format_number(std::round(1000 * spacing) / 1000) +
+                " m from their nearest neighbour (median over its frames), closer than bodies allow (" + format_number(kMinBodySpacing) +
+                " m): " + hint("a recording in other units than its header states (\"# unit: cm\" or mm; metres when none)"));
+}
 
 ObservedState observe_at(const TrajectorySet& t, long frame, double velocity_window, double speed_window,
                          std::shared_ptr<const SpeedHistory> history) {

@@ -41,6 +41,14 @@ class SpeedHistory {
   mutable std::mutex mutex_;
   mutable std::map<std::tuple<double, double, uint64_t>, std::unique_ptr<std::vector<float>>> cache_;
 };
+// A recording read at the wrong scale, checked where it meets its venue: throws Error naming it
+// when more than half of its positions lie outside the venue's domain, or when its people stand
+// closer than bodies allow (the median over its frames of the median nearest-neighbour distance
+// below kMinBodySpacing): a recording in other units than its header states (metres when it
+// states none), or of another venue. Says which units would fit (cm, mm or m) where one would.
+constexpr double kMinBodySpacing = 0.1;  // m: the densest crowds measured stand 0.3-0.4 m apart
+void check_recording_scale(const TrajectorySet& t, const Geometry& geo, const std::string& venue);
+
 std::shared_ptr<const SpeedHistory> speed_history(const TrajectorySet& t, double speed_window);
 // Each person's free speed under a model's density-speed law (MaterialParams::density_speed_gamma
 // > 0): the 90th percentile, over their samples up to frame `last`, of speed / f(density), f the

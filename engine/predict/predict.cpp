@@ -161,6 +161,7 @@ PredictJob load_predict_job(const std::string& scenario_path, const std::string&
                                            : "scenario's model " + job.models[0].name;
   for (const auto& p : model_paths) job.models.push_back(Model::load(p, o.input));
   job.recording = TrajectorySet::read(trajectories_path, 0, o.input);
+  check_recording_scale(job.recording, job.scenario.geo, job.scenario.source);
   job.options = o;
   job.desired_speed = ds;
   return job;
