@@ -166,6 +166,18 @@ TEST_CASE("orbit around a structure follows its contour counter-clockwise", "[un
   CHECK_THROWS_WITH(ScenarioDef::parse_text(both), Catch::Contains("groups[0].behaviour: orbit needs exactly one of"));
 }
 
+TEST_CASE("an exit nobody can reach is refused and one with a clear point is not", "[units]") {
+  auto scenario = [](const std::string& exit_rect) {
+    return R"({"format": "crowdmpm-scenario", "version": 1, "domain": {"min": [0, 0], "max": [10, 4]}, "time": {"duration": 1},
+      "geometry": {"obstacles": [{"id": "block", "rect": [6, 0, 6.5, 4]}], "exits": [{"id": "out", "rect": )" + exit_rect + R"(}]},
+      "groups": [{"spawn": {"rect": [1, 1, 3, 3]}, "count": 4, "behaviour": {"type": "goal", "target": "out"}}]})";
+  };
+  CHECK_THROWS_WITH(ScenarioDef::parse_text(scenario("[6.1, 1, 6.4, 2]")),
+                    Catch::Contains("geometry.exits[0]: lies wholly inside walls or obstacles") && Catch::Contains("\"out\""));
+  CHECK_NOTHROW(ScenarioDef::parse_text(scenario("[6.1, 1, 6.7, 2]")));  // its right edge sticks out of the block
+  CHECK_NOTHROW(ScenarioDef::parse_text(scenario("[9.8, 0, 10, 4]")));   // a strip along the domain's edge
+}
+
 TEST_CASE("agents placed on the same spot separate", "[units]") {
   const char* text = R"({"format": "crowdmpm-scenario", "version": 1,
     "domain": {"min": [0, 0], "max": [10, 6]}, "time": {"duration": 5},

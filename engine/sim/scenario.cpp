@@ -1,5 +1,6 @@
 #include "engine/sim/scenario.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 
@@ -188,6 +189,21 @@ ScenarioDef ScenarioDef::parse(const json& j, const std::string& source, const s
     const Shape& e = s.geo.exits[i].shape;
     if (e.hi.x() <= s.geo.lo.x() || e.lo.x() >= s.geo.hi.x() || e.hi.y() <= s.geo.lo.y() || e.lo.y() >= s.geo.hi.y())
       r.fail_at("geometry.exits[" + std::to_string(i) + "]", "lies outside the domain (exits must be inside domain.min..max)");
+    // People leave where their centre enters the exit: it needs a point clear of the solids. A
+    // lattice of at most 400 x 400 points over its bounding box (at least 4 across each side).
+    const Vec2 span = e.hi - e.lo;
+    const long nx = std::clamp(static_cast<long>(std::ceil(span.x() / 0.05)), 4L, 400L),
+               ny = std::clamp(static_cast<long>(std::ceil(span.y() / 0.05)), 4L, 400L);
+    bool clear = false;
+    for (long a = 0; a < nx && !clear; ++a)
+      for (long b = 0; b < ny && !clear; ++b) {
+        const Vec2 q = e.lo + Vec2(span.x() * (static_cast<double>(a) + 0.5) / static_cast<double>(nx),
+                                   span.y() * (static_cast<double>(b) + 0.5) / static_cast<double>(ny));
+        clear = s.geo.in_domain(q) && e.contains(q) && s.geo.sdf(q) > 0;
+      }
+    if (!clear)
+      r.fail_at("geometry.exits[" + std::to_string(i) + "]",
+                "lies wholly inside walls or obstacles (or outside the domain): nobody can reach it (\"" + s.geo.exits[i].id + "\")");
   }
 
   auto check_target = [&](const Behaviour& b) {
