@@ -69,7 +69,7 @@ void check_recording_scale(const TrajectorySet& t, const Geometry& geo, const st
   if (spacing > 0 && spacing < kMinBodySpacing)
     throw Error(t.source + ": its people stand " + format_number(std::round(1000 * spacing) / 1000) +
                 " m from their nearest neighbour (median over its frames), closer than bodies allow (" + format_number(kMinBodySpacing) +
-                " m): " + hint("a recording in other units than its header states (\"# unit: cm\" or mm; metres when none)"));
+                " m): " + hint("a recording in other units than its header states (\"# unit: cm\" or mm; metres when none), or each person tracked twice"));
 }
 
 ObservedState observe_at(const TrajectorySet& t, long frame, double velocity_window, double speed_window,
