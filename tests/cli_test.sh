@@ -60,7 +60,7 @@ check "train" 0 "$cli" train --scenario "$src/scenarios/bottleneck.json" --traje
 contains "train reports" "validation trajectory loss"
 check "validate learned model" 0 "$cli" validate "$src/scenarios/bottleneck.json" --model "$work/model.json"
 check "validate a model file" 1 "$cli" validate "$work/model.json"
-contains "validate a model file" 'format: is "crowdmpm-model", not "crowdmpm-scenario": a model file'
+contains "validate a model file" 'format: must be "crowdmpm-scenario", got "crowdmpm-model": a model file'
 check "train grid velocity loss" 0 "$cli" train --scenario "$src/scenarios/bottleneck.json" \
   --trajectories "$work/sim/trajectories.txt" --window 1 --iterations 2 --loss grid_velocity --quiet --out "$work/gv.json"
 check "train social force" 0 "$cli" train --scenario "$src/scenarios/bottleneck.json" \

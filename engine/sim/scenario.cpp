@@ -89,7 +89,7 @@ ScenarioDef ScenarioDef::parse(const json& j, const std::string& source, const s
   // The format before the keys: a model file given as a scenario is named as one, not answered
   // with the keys a scenario allows.
   if (j.contains("format") && j["format"].is_string() && j["format"] != "crowdmpm-scenario")
-    r.fail_at("format", "is \"" + j["format"].get<std::string>() + "\", not \"crowdmpm-scenario\"" +
+    r.fail_at("format", "must be \"crowdmpm-scenario\", got \"" + j["format"].get<std::string>() + "\"" +
                             (j["format"] == "crowdmpm-model" ? ": a model file (give it with --model, or name it in a scenario's \"model\")" : ""));
   r.allow_only({"format", "version", "name", "description", "domain", "time", "seed", "model",
                 "geometry", "goals", "groups", "sources", "forces", "measurement_areas", "outputs",

@@ -190,7 +190,8 @@ void jobs_beside_stepping() {
   if (!f) return;
   std::fprintf(f, "# framerate: 10\n");
   for (int frame = 0; frame <= 40; ++frame)
-    for (int id = 1; id <= 6; ++id) std::fprintf(f, "%d %d %.3f %.3f\n", id, frame, 0.8 + 0.03 * frame, 0.8 * id - 0.3);
+    for (int id = 1; id <= 6; ++id)  // two rows of three in RiMEA test 1's corridor (2 m wide)
+      std::fprintf(f, "%d %d %.3f %.3f\n", id, frame, 0.8 + 0.6 * ((id - 1) % 3) + 0.03 * frame, 0.6 + 0.8 * ((id - 1) / 3));
   std::fclose(f);
   const std::string scenario = g_repo + "/scenarios/rimea_01.json";
   cmpm_WorldId w = make_room(1);
