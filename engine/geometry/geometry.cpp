@@ -5,6 +5,21 @@
 
 namespace crowdmpm {
 
+double Geometry::free_area(const Shape& region, double clearance) const {
+  const Vec2 a = region.lo.cwiseMax(lo), b = region.hi.cwiseMin(hi);
+  if (!(b.x() > a.x() && b.y() > a.y())) return 0;
+  const double h = std::max(0.05, std::sqrt((b.x() - a.x()) * (b.y() - a.y()) / 4e6));
+  // Counted as well as compared: a step below the spacing of doubles there would never end.
+  const long nx = static_cast<long>(std::ceil((b.x() - a.x()) / h)) + 1, ny = static_cast<long>(std::ceil((b.y() - a.y()) / h)) + 1;
+  long free_cells = 0;
+  double y = a.y() + h / 2;
+  for (long j = 0; j < ny && y < b.y(); ++j, y += h) {
+    double x = a.x() + h / 2;
+    for (long i = 0; i < nx && x < b.x(); ++i, x += h) free_cells += region.contains(Vec2(x, y)) && sdf(Vec2(x, y)) >= clearance;
+  }
+  return static_cast<double>(free_cells) * h * h;
+}
+
 double Geometry::sdf(const Vec2& p) const {
   double d = std::min(std::min(p.x() - lo.x(), hi.x() - p.x()), std::min(p.y() - lo.y(), hi.y() - p.y()));
   for (const auto& s : solids) {

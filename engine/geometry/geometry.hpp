@@ -31,6 +31,10 @@ class Geometry {
   bool in_domain(const Vec2& p) const {
     return p.x() >= lo.x() && p.x() <= hi.x() && p.y() >= lo.y() && p.y() <= hi.y();
   }
+  // The area (m^2) of `region` inside the domain whose points lie at least `clearance` from every
+  // solid and the domain's border: sampled at 5 cm, or coarser so that at most ~4e6 samples are
+  // taken. 0 when no sample is free (the region lies inside solids or outside the domain).
+  double free_area(const Shape& region, double clearance) const;
   // Index of the exit containing p, or -1.
   int exit_at(const Vec2& p) const;
   const NamedShape* find_target(const std::string& id) const;  // exit or goal by id

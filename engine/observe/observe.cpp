@@ -10,6 +10,12 @@
 namespace crowdmpm {
 
 namespace {
+// The upper median, as elsewhere in the engine (reorders x).
+double upper_median(std::vector<double>& x) {
+  std::nth_element(x.begin(), x.begin() + static_cast<long>(x.size() / 2), x.end());
+  return x[x.size() / 2];
+}
+
 // The median, over frames with two people or more (at most about 200 of them, evenly spread), of
 // the median distance from each person to their nearest neighbour; 0 when no frame has two.
 double median_neighbour_distance(const TrajectorySet& t) {
@@ -28,12 +34,9 @@ double median_neighbour_distance(const TrajectorySet& t) {
         if (q != p) d2 = std::min(d2, (p->x - q->x) * (p->x - q->x) + (p->y - q->y) * (p->y - q->y));
       nearest.push_back(std::sqrt(d2));
     }
-    std::nth_element(nearest.begin(), nearest.begin() + static_cast<long>(nearest.size() / 2), nearest.end());
-    medians.push_back(nearest[nearest.size() / 2]);
+    medians.push_back(upper_median(nearest));
   }
-  if (medians.empty()) return 0;
-  std::nth_element(medians.begin(), medians.begin() + static_cast<long>(medians.size() / 2), medians.end());
-  return medians[medians.size() / 2];
+  return medians.empty() ? 0 : upper_median(medians);
 }
 }  // namespace
 
@@ -189,14 +192,10 @@ SpeedDistribution free_speed_distribution(const TrajectorySet& t, double speed_w
   if (v.empty())
     throw Error(t.source + ": nobody is seen walking for " + format_number(speed_window) + " s up to frame " + std::to_string(last) +
                 ": no free speed to read");
-  auto median = [](std::vector<double>& x) {  // the upper median, as elsewhere in the engine
-    std::nth_element(x.begin(), x.begin() + static_cast<long>(x.size() / 2), x.end());
-    return x[x.size() / 2];
-  };
   SpeedDistribution d;
-  d.median = median(v);
+  d.median = upper_median(v);
   for (double& x : v) x = std::abs(x - d.median);
-  d.sd = 1.4826 * median(v);
+  d.sd = 1.4826 * upper_median(v);
   d.people = static_cast<long>(v.size());
   return d;
 }

@@ -88,14 +88,13 @@ ScenarioDef ScenarioDef::parse(const json& j, const std::string& source, const s
   r.require_object();
   // The format before the keys: a model file given as a scenario is named as one, not answered
   // with the keys a scenario allows.
-  if (j.contains("format") && j["format"].is_string() && j["format"] != "crowdmpm-scenario")
-    r.fail_at("format", "must be \"crowdmpm-scenario\", got \"" + j["format"].get<std::string>() + "\"" +
-                            (j["format"] == "crowdmpm-model" ? ": a model file (give it with --model, or name it in a scenario's \"model\")" : ""));
+  const std::string format = r.string("format", std::nullopt);
+  if (format != "crowdmpm-scenario")
+    r.fail_at("format", "must be \"crowdmpm-scenario\", got \"" + format + "\"" +
+                            (format == "crowdmpm-model" ? ": a model file (give it with --model, or name it in a scenario's \"model\")" : ""));
   r.allow_only({"format", "version", "name", "description", "domain", "time", "seed", "model",
                 "geometry", "goals", "groups", "sources", "forces", "measurement_areas", "outputs",
                 "navigation"});
-  if (r.string("format", std::nullopt) != "crowdmpm-scenario")
-    r.fail_at("format", "must be \"crowdmpm-scenario\"");
   int version = r.integer("version", 1, 1000, std::nullopt);
   if (version != 1) r.fail_at("version", "unsupported scenario version " + std::to_string(version) + " (this engine reads 1)");
   ScenarioDef s;
@@ -189,19 +188,8 @@ ScenarioDef ScenarioDef::parse(const json& j, const std::string& source, const s
     const Shape& e = s.geo.exits[i].shape;
     if (e.hi.x() <= s.geo.lo.x() || e.lo.x() >= s.geo.hi.x() || e.hi.y() <= s.geo.lo.y() || e.lo.y() >= s.geo.hi.y())
       r.fail_at("geometry.exits[" + std::to_string(i) + "]", "lies outside the domain (exits must be inside domain.min..max)");
-    // People leave where their centre enters the exit: it needs a point clear of the solids. A
-    // lattice of at most 400 x 400 points over its bounding box (at least 4 across each side).
-    const Vec2 span = e.hi - e.lo;
-    const long nx = std::clamp(static_cast<long>(std::ceil(span.x() / 0.05)), 4L, 400L),
-               ny = std::clamp(static_cast<long>(std::ceil(span.y() / 0.05)), 4L, 400L);
-    bool clear = false;
-    for (long a = 0; a < nx && !clear; ++a)
-      for (long b = 0; b < ny && !clear; ++b) {
-        const Vec2 q = e.lo + Vec2(span.x() * (static_cast<double>(a) + 0.5) / static_cast<double>(nx),
-                                   span.y() * (static_cast<double>(b) + 0.5) / static_cast<double>(ny));
-        clear = s.geo.in_domain(q) && e.contains(q) && s.geo.sdf(q) > 0;
-      }
-    if (!clear)
+    // People leave where their centre enters the exit: it needs a point clear of the solids.
+    if (s.geo.free_area(e, 0) <= 0)
       r.fail_at("geometry.exits[" + std::to_string(i) + "]",
                 "lies wholly inside walls or obstacles (or outside the domain): nobody can reach it (\"" + s.geo.exits[i].id + "\")");
   }

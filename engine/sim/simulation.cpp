@@ -270,22 +270,8 @@ void Simulation::place_group(size_t gi) {
   const double r = tmpl.body_radius, clearance = std::max(model_.params.wall_clearance, 0.0);
   const Geometry& geo = scenario_.geo;
   auto free_at = [&](const Vec2& p) { return g.region.contains(p) && geo.sdf(p) >= clearance; };
-  // Free area by sampling the part of the region inside the domain, at 5 cm or coarser so that
-  // at most ~4e6 samples are taken.
-  const Vec2 lo = g.region.lo.cwiseMax(geo.lo), hi = g.region.hi.cwiseMin(geo.hi);
-  long free_cells = 0;
-  double h = 0.05;
-  if (hi.x() > lo.x() && hi.y() > lo.y()) {
-    h = std::max(0.05, std::sqrt((hi.x() - lo.x()) * (hi.y() - lo.y()) / 4e6));
-    // Counted as well as compared: a step below the spacing of doubles there would never end.
-    const long nxs = static_cast<long>(std::ceil((hi.x() - lo.x()) / h)) + 1, nys = static_cast<long>(std::ceil((hi.y() - lo.y()) / h)) + 1;
-    double y = lo.y() + h / 2;
-    for (long j = 0; j < nys && y < hi.y(); ++j, y += h) {
-      double x = lo.x() + h / 2;
-      for (long i = 0; i < nxs && x < hi.x(); ++i, x += h) free_cells += free_at(Vec2(x, y));
-    }
-  }
-  const double area = static_cast<double>(free_cells) * h * h;
+  const Vec2 lo = g.region.lo.cwiseMax(geo.lo), hi = g.region.hi.cwiseMin(geo.hi);  // the region within the domain
+  const double area = geo.free_area(g.region, clearance);
   if (g.count == 0) return;
   if (area <= 0) throw Error(g.path + ".spawn: the region has no walkable area (it lies inside walls, obstacles or outside the domain)");
   const long count = g.count >= 0 ? g.count : std::lround(g.density * area);
@@ -324,7 +310,7 @@ void Simulation::place_group(size_t gi) {
     const double off_x = rng_.uniform() * a;
     const double off_y = rng_.uniform() * row;
     const Vec2 off(off_x, off_y);
-    // Counted as well as compared, as the area sampling above.
+    // Counted as well as compared, as the area sampling (Geometry::free_area).
     const long rows = static_cast<long>(std::ceil((hi.y() - lo.y()) / row)) + 3, cols = static_cast<long>(std::ceil((hi.x() - lo.x()) / a)) + 3;
     int k = 0;
     for (double y = lo.y() + off.y() - row; k < rows && y <= hi.y(); y += row, ++k) {
