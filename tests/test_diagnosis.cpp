@@ -353,6 +353,8 @@ TEST_CASE("diagnosis requests name what is wrong", "[diagnosis]") {
   fails_with({{"scenario", belief}, {"trajectories", rec}, {"options", {{"baseline_restarts", 21}}}}, "baseline_restarts");
   CHECK(parse_diagnose_job({{"scenario", belief}, {"trajectories", rec}, {"options", {{"baseline_restarts", 3}}}}).options.baseline_restarts == 3);
   CHECK(parse_diagnose_job({{"scenario", belief}, {"trajectories", rec}}).options.baseline_restarts == 0);
+  fails_with({{"scenario", belief}, {"trajectories", rec}, {"options", {{"min_gain_venue", 1.5}}}}, "min_gain_venue");
+  CHECK(parse_diagnose_job({{"scenario", belief}, {"trajectories", rec}, {"options", {{"min_gain_venue", 0.08}}}}).options.min_gain_venue == 0.08);
   {
     const DiagnoseJob job = parse_diagnose_job(
         {{"scenario", belief}, {"trajectories", rec}, {"options", {{"baseline_optimizer", "lbfgs"}, {"optimizer", "adam"}}}});

@@ -255,18 +255,25 @@ int main(int argc, char** argv) {
         << false_findings << "/" << controls << "\n";
     }
     double worst_loc = 0, least_gain = 1;
-    int correct = 0;
+    int correct = 0, located = 0;
     for (const Row& r : rows) {
       if (!r.correct || r.effect == "none") continue;
       ++correct;
-      if (std::isfinite(r.loc_error)) worst_loc = std::max(worst_loc, r.loc_error);
+      if (std::isfinite(r.loc_error)) {
+        ++located;
+        worst_loc = std::max(worst_loc, r.loc_error);
+      }
       least_gain = std::min(least_gain, 1 - r.after / r.before);
     }
-    if (correct == 0)
+    if (correct == 0) {
       t << "- no correct identification (so no localisation error or held-out reduction to give)\n";
-    else
-      t << "- largest localisation error of a correctly found obstacle, attractor or vortex: " << fmt(worst_loc, 2) << " m\n"
-        << "- smallest held-out error reduction of a correct identification: " << fmt(100 * least_gain, 1) << "%\n";
+    } else {
+      if (located == 0)
+        t << "- no obstacle, attractor or vortex correctly found (no localisation error to give)\n";
+      else
+        t << "- largest localisation error of a correctly found obstacle, attractor or vortex: " << fmt(worst_loc, 2) << " m\n";
+      t << "- smallest held-out error reduction of a correct identification: " << fmt(100 * least_gain, 1) << "%\n";
+    }
     std::printf("table: %s\n", (fs::path(out_dir) / "table.md").string().c_str());
     return 0;
   } catch (const std::exception& e) {

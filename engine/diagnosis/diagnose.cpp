@@ -694,7 +694,7 @@ DiagnoseJob parse_diagnose_job(const json& request, const std::string& base_dir)
   if (auto op = r.get("options")) {
     op->require_object();
     op->allow_only({"train_share", "window", "stride", "horizon", "residual_stride", "cell", "time_bin", "z_threshold", "source_margin",
-                    "null_replicates", "alpha", "max_terms", "min_gain", "min_gain_z", "candidates", "params",
+                    "null_replicates", "alpha", "max_terms", "min_gain", "min_gain_venue", "min_gain_z", "candidates", "params",
                     "iterations", "learning_rate", "baseline_restarts", "threads", "seed", "desired_speed", "density_law", "baseline_optimizer",
                     "optimizer"});
     o.train_share = op->in_range("train_share", 0.2, 0.9, o.train_share);
@@ -710,6 +710,7 @@ DiagnoseJob parse_diagnose_job(const json& request, const std::string& base_dir)
     o.alpha = op->in_range("alpha", 1e-9, 0.5, o.alpha);
     o.max_terms = static_cast<int>(op->in_range("max_terms", 0, 3, o.max_terms));
     o.min_gain = op->in_range("min_gain", 0, 1, o.min_gain);
+    o.min_gain_venue = op->in_range("min_gain_venue", 0, 1, o.min_gain_venue);
     o.min_gain_z = op->in_range("min_gain_z", 0, 100, o.min_gain_z);
     o.iterations = static_cast<int>(op->in_range("iterations", 1, 10000, o.iterations));
     o.learning_rate = op->in_range("learning_rate", 1e-6, 10, o.learning_rate);
@@ -963,6 +964,7 @@ DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& pr
       // The term against a reference: its held-out gain, in standard errors, and the information
       // criterion; the reason it fails, or empty.
       const size_t k_term = cand.learned_count();  // (a structured binding: C++17 lambdas cannot capture it)
+      const double min_gain = is_global(h.term) ? d.min_gain_venue : d.min_gain;
       const auto judge = [&](const ErrorStats& before) {
         const Comparison cmp = compare(before, region, 0, k_term, d.stride, d.window);
         h.baseline_error = before.rms;
@@ -970,7 +972,7 @@ DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& pr
         h.gain_z = cmp.z;
         h.score = cmp.score_after;
         h.baseline_score = cmp.score_before;
-        if (!(cmp.gain >= d.min_gain)) return "held-out gain " + num(100 * cmp.gain, 1) + "% below " + num(100 * d.min_gain, 0) + "%";
+        if (!(cmp.gain >= min_gain)) return "held-out gain " + num(100 * cmp.gain, 1) + "% below " + num(100 * min_gain, 0) + "%";
         if (!(cmp.z >= d.min_gain_z)) return "gain " + num(cmp.z, 1) + " standard errors, below " + num(d.min_gain_z, 1);
         if (!(cmp.score_after < cmp.score_before)) return std::string("information criterion does not fall");
         return std::string();

@@ -53,7 +53,11 @@ struct DiagnoseOptions {
   // paired gain over people is at least min_gain_z standard errors and the information
   // criterion n ln(MSE) + k ln(n) there falls, while the error of everyone rises by no more than
   // 2%; of the terms that pass, the one with the lowest held-out error of everyone is added.
+  // A venue-wide term (drift, density_speed) needs min_gain_venue instead of min_gain: it is
+  // judged on everyone, whose error also holds misfit no venue-wide term acts on (a door's jam),
+  // where a local term is judged only on the people it acts on.
   double min_gain = 0.1;
+  double min_gain_venue = 0.05;
   double min_gain_z = 3;
   std::vector<std::string> candidates;  // law types to try; empty: all diagnosis candidates
   // Material parameters refitted with every term (default: those of v0_scale, tau and time_gap
@@ -159,7 +163,7 @@ struct DiagnosisResult {
 //              "density": 1.5 (persons/m^2), "seed_speed": 0.3 (m/s), "presence": 2 (s)},
 //    "options": {"train_share", "window", "stride", "horizon", "residual_stride", "cell",
 //                "time_bin", "z_threshold", "null_replicates", "alpha", "max_terms",
-//                "min_gain", "min_gain_z", "candidates", "params", "iterations",
+//                "min_gain", "min_gain_venue", "min_gain_z", "candidates", "params", "iterations",
 //                "learning_rate", "baseline_restarts", "threads", "seed", "desired_speed", "density_law", "baseline_optimizer",
 //                "optimizer"}}
 struct DiagnoseJob {

@@ -254,7 +254,9 @@ CMPM_API cmpm_Status cmpm_PredictRecording(const char* request_json, const char*
  *    "options": {"train_share": 0.6, "window": 3, "stride": 1, "horizon": 1.5,
  *                "residual_stride": 0.5, "cell": 0.5, "time_bin": 5, "z_threshold": 3.5,
  *                "source_margin": 2, "null_replicates": 6, "alpha": 0.01, "max_terms": 3,
- *                "min_gain": 0.1, "min_gain_z": 3, "candidates": [NAME, ...] (default all:
+ *                "min_gain": 0.1, "min_gain_venue": 0.05 (what a venue-wide term, drift
+ *                or density_speed, must gain on everyone), "min_gain_z": 3,
+ *                "candidates": [NAME, ...] (default all:
  *                "obstacle", "constriction", "drift", "attractor", "vortex", "slow_zone",
  *                "wall_friction", "density_speed", "counterflow"; a constriction, a wall across
  *                the flow with one opening, is reported as an obstacle with "shape"),
