@@ -897,7 +897,7 @@ DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& pr
     };
     const ErrorStats base_global = reference(everyone);
     const double before_refit = stats_of(base_err, sp.heldout, everyone).rms;
-    // Where the refit alone predicts everyone clearly better (by min_gain, what a term must gain),
+    // Where the refit alone predicts everyone clearly better (by min_gain, what a local term must gain),
     // the baseline's fit had stopped short: the candidates start from the refit, or each would
     // spend its fit on that convergence and its term gain little against the refit. Otherwise
     // they start from the baseline the regions were found with (a refit that gains little may
@@ -964,7 +964,7 @@ DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& pr
       // The term against a reference: its held-out gain, in standard errors, and the information
       // criterion; the reason it fails, or empty.
       const size_t k_term = cand.learned_count();  // (a structured binding: C++17 lambdas cannot capture it)
-      const double min_gain = is_global(h.term) ? d.min_gain_venue : d.min_gain;
+      const double min_gain = h.judged.everyone() ? d.min_gain_venue : d.min_gain;  // a venue-wide term's or a local one's
       const auto judge = [&](const ErrorStats& before) {
         const Comparison cmp = compare(before, region, 0, k_term, d.stride, d.window);
         h.baseline_error = before.rms;
