@@ -370,13 +370,29 @@ std::optional<Opening> narrowest_opening(const TrajectorySet& t, long last, cons
 
 // The candidates of one region, initialised from what its residuals show (DESIGN.md section 6,
 // step 3), and a constriction's opening from where the recorded people cross its line up to
-// frame `last`. drift is initialised from the whole venue's mean residual.
-std::vector<Term> initial_candidates(const Cluster& c, const Vec2& global_mean, const Model& m, const Geometry& geo,
-                                     const TrajectorySet& t, long last, const std::vector<std::string>& types) {
+// frame `last`. drift is initialised from the whole venue's mean residual. Each candidate is a
+// list of starts, fitted each and the one with the lowest validation loss kept: an attractor's
+// or vortex's range is not fitted (its law has no derivative in it), so it starts at twice the
+// region's radius and at the radius (1.5-4 m both): a field as wide as the region the residuals
+// show, or one reaching into the region's surroundings.
+std::vector<std::vector<Term>> initial_candidates(const Cluster& c, const Vec2& global_mean, const Model& m, const Geometry& geo,
+                                                  const TrajectorySet& t, long last, const std::vector<std::string>& types) {
   const double tau = m.params.tau;
-  const double range = clampd(2 * c.radius, 1.5, 4);
-  std::vector<Term> out;
+  std::vector<double> ranges = {clampd(2 * c.radius, 1.5, 4)};
+  if (clampd(c.radius, 1.5, 4) < ranges[0]) ranges.push_back(clampd(c.radius, 1.5, 4));
+  std::vector<std::vector<Term>> out;
   for (const std::string& type : types) {
+    if (type == "attractor" || type == "vortex") {
+      const double strength = type == "attractor" ? -c.radial / tau : c.tangential / tau;
+      std::vector<Term> starts;
+      for (const double range : ranges) {
+        const json j = {{"type", type}, {"center", {c.center.x(), c.center.y()}}, {"strength", clampd(strength, -5, 5)},
+                        {"range", range}, {"learn", {"center", "strength"}}};
+        starts.push_back(make_term(j));
+      }
+      out.push_back(std::move(starts));
+      continue;
+    }
     json j;
     if (type == "obstacle") {
       // The rim's stiffness stays at its default (a solid); where it is, how large and how early
@@ -412,12 +428,6 @@ std::vector<Term> initial_candidates(const Cluster& c, const Vec2& global_mean, 
     } else if (type == "drift") {
       const Vec2 a = global_mean / tau;
       j = {{"type", "drift"}, {"acceleration", {clampd(a.x(), -5, 5), clampd(a.y(), -5, 5)}}, {"learn", {"acceleration"}}};
-    } else if (type == "attractor") {
-      j = {{"type", "attractor"}, {"center", {c.center.x(), c.center.y()}}, {"strength", clampd(-c.radial / tau, -5, 5)},
-           {"range", range}, {"learn", {"center", "strength"}}};
-    } else if (type == "vortex") {
-      j = {{"type", "vortex"}, {"center", {c.center.x(), c.center.y()}}, {"strength", clampd(c.tangential / tau, -5, 5)},
-           {"range", range}, {"learn", {"center", "strength"}}};
     } else if (type == "slow_zone") {
       j = {{"type", "slow_zone"}, {"min", {c.lo.x(), c.lo.y()}}, {"max", {c.hi.x(), c.hi.y()}}, {"factor", 0.7},
            {"learn", {"min", "max", "factor"}}};
@@ -438,7 +448,7 @@ std::vector<Term> initial_candidates(const Cluster& c, const Vec2& global_mean, 
     } else {
       continue;
     }
-    out.push_back(make_term(j));
+    out.push_back({make_term(j)});
   }
   return out;
 }
@@ -911,18 +921,18 @@ DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& pr
     std::vector<WindowErrors> best_err;
     FitResult best_fit;
     // Each significant region's local candidates, then the venue-wide ones once (judged on everyone).
-    std::vector<std::pair<const Cluster*, Term>> trials, venue_wide;
+    std::vector<std::pair<const Cluster*, std::vector<Term>>> trials, venue_wide;
     for (const Cluster* c : significant)
-      for (Term& cand : initial_candidates(*c, loc.global_mean, model, belief.geo, t, sp.train_to, types)) {
-        if (!is_global(cand)) trials.emplace_back(c, std::move(cand));
-        else if (c == significant.front()) venue_wide.emplace_back(nullptr, std::move(cand));
+      for (std::vector<Term>& starts : initial_candidates(*c, loc.global_mean, model, belief.geo, t, sp.train_to, types)) {
+        if (!is_global(starts.front())) trials.emplace_back(c, std::move(starts));
+        else if (c == significant.front()) venue_wide.emplace_back(nullptr, std::move(starts));
       }
     for (auto& v : venue_wide) trials.push_back(std::move(v));
     // Two regions can start the same candidate (the same straight wall's friction, its ends
     // found from two points up to a wall step apart): it is fitted once.
     std::vector<Term> tried;
-    for (auto& [c, cand] : trials) {
-      const Term& fresh = cand;  // (C++17 lambdas cannot capture a structured binding)
+    for (auto& [c, starts] : trials) {
+      const Term& fresh = starts.front();  // (C++17 lambdas cannot capture a structured binding)
       const auto same_start = [&](const Term& u) {
         if (u.law != fresh.law || u.params.size() != fresh.params.size() || u.learn != fresh.learn) return false;
         for (size_t k = 0; k < u.params.size(); ++k)
@@ -930,7 +940,7 @@ DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& pr
         return true;
       };
       if (std::any_of(tried.begin(), tried.end(), same_start)) continue;
-      tried.push_back(cand);
+      tried.push_back(fresh);
       const int region_index = c ? static_cast<int>(c - loc.clusters.data()) +
                                        static_cast<int>(res.regions.size() - loc.clusters.size())
                                  : -1;
@@ -938,10 +948,22 @@ DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& pr
       h.round = round;
       h.region = region_index;
       h.from_refit = from_refit;
-      std::vector<Term> trial = terms;
-      trial.push_back(cand);
-      say("  fitting " + term_name(cand) + (c ? " at " + point(c->center) : std::string(" (whole venue)")));
-      FitResult f = fit(belief, trial, start, sp, d, d.candidates_lbfgs);
+      say("  fitting " + term_name(fresh) + (c ? " at " + point(c->center) : std::string(" (whole venue)")));
+      // From each start; the fit with the lowest validation loss (the training part's) is judged.
+      FitResult f;
+      Term cand = fresh;
+      for (const Term& from : starts) {
+        std::vector<Term> trial = terms;
+        trial.push_back(from);
+        FitResult g = fit(belief, trial, start, sp, d, d.candidates_lbfgs);
+        if (starts.size() > 1)
+          say("    from range " + num(from.params[3], 2) + " m: " +
+              (g.ok ? "validation loss " + num(g.validation, 4) + " m2" : "fit failed: " + g.error));
+        if (!f.ok || (g.ok && g.validation < f.validation)) {
+          f = std::move(g);
+          cand = from;
+        }
+      }
       if (!f.ok) {
         h.term = cand;
         h.why = "fit failed: " + f.error;
@@ -963,7 +985,7 @@ DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& pr
       h.heldout_error_global = global.rms;
       // The term against a reference: its held-out gain, in standard errors, and the information
       // criterion; the reason it fails, or empty.
-      const size_t k_term = cand.learned_count();  // (a structured binding: C++17 lambdas cannot capture it)
+      const size_t k_term = cand.learned_count();
       const double min_gain = h.judged.everyone() ? d.min_gain_venue : d.min_gain;  // a venue-wide term's or a local one's
       const auto judge = [&](const ErrorStats& before) {
         const Comparison cmp = compare(before, region, 0, k_term, d.stride, d.window);
