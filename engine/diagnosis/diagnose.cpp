@@ -372,9 +372,9 @@ std::optional<Opening> narrowest_opening(const TrajectorySet& t, long last, cons
 // step 3), and a constriction's opening from where the recorded people cross its line up to
 // frame `last`. drift is initialised from the whole venue's mean residual. Each candidate is a
 // list of starts, fitted each and the one with the lowest validation loss kept: an attractor's
-// or vortex's range is not fitted (its law has no derivative in it), so it starts at twice the
-// region's radius and at the radius (1.5-4 m both): a field as wide as the region the residuals
-// show, or one reaching into the region's surroundings.
+// or vortex's range is fitted (a smooth edge 0.5 m wide) but learns only from the people near
+// its edge, so it starts at twice the region's radius and at the radius (1.5-4 m both): a field
+// reaching into the region's surroundings, or one as wide as the region the residuals show.
 std::vector<std::vector<Term>> initial_candidates(const Cluster& c, const Vec2& global_mean, const Model& m, const Geometry& geo,
                                                   const TrajectorySet& t, long last, const std::vector<std::string>& types) {
   const double tau = m.params.tau;
@@ -387,7 +387,7 @@ std::vector<std::vector<Term>> initial_candidates(const Cluster& c, const Vec2& 
       std::vector<Term> starts;
       for (const double range : ranges) {
         const json j = {{"type", type}, {"center", {c.center.x(), c.center.y()}}, {"strength", clampd(strength, -5, 5)},
-                        {"range", range}, {"learn", {"center", "strength"}}};
+                        {"range", range}, {"edge", 0.5}, {"learn", {"center", "strength", "range"}}};
         starts.push_back(make_term(j));
       }
       out.push_back(std::move(starts));

@@ -30,7 +30,13 @@ const TermLaw* find_term_law(const std::string& type) {
 std::vector<TermField> centred_fields(const char* strength_meaning) {
   return {{"center", 2, "m", -1e9, 1e9, kRequired, true, "the centre"},
           {"strength", 1, "m/s^2", -50, 50, kRequired, true, strength_meaning},
-          {"range", 1, "m", 1e-9, 1e300, 1e300, false, "no acceleration farther than this"}};
+          {"range", 1, "m", 1e-9, 1e300, 1e300, true, "no acceleration farther than this (learnable with edge > 0)"},
+          {"edge", 1, "m", 0, 10, 0, false, "0: a hard cutoff at the range; > 0: the field fades out over this width"}};
+}
+
+std::string centred_not_learnable(const std::string& key, const double* params) {
+  if (key == "range" && !(params[4] > 0)) return "with a hard cutoff (edge 0) it is not differentiable: give an edge > 0 m";
+  return {};
 }
 
 bool terms_need_density(const std::vector<Term>& terms) {
@@ -127,6 +133,8 @@ Term Term::parse(const JsonReader& r, const std::vector<std::string>& group_ids)
         if (key == f.key) {
           if (!f.learnable)
             lr->item(i).fail(std::string("\"") + key + "\" of a " + t.law->type() + " term cannot be learned (not differentiable)");
+          if (const std::string why = t.law->not_learnable(key, t.params.data()); !why.empty())
+            lr->item(i).fail(std::string("\"") + key + "\" of a " + t.law->type() + " term cannot be learned: " + why);
           for (int c = 0; c < f.dims; ++c) t.learn[k + static_cast<size_t>(c)] = 1;
           found = true;
         }

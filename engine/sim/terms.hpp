@@ -125,6 +125,9 @@ class TermLaw {
   // Extra checks of a parsed parameter set beyond each field's range (xmin < xmax, ...);
   // returns an error message naming the key, or empty.
   virtual std::string check(const double* /*params*/) const { return {}; }
+  // Why a learnable field cannot be learned with these parameters (a range with a hard
+  // cutoff), or empty.
+  virtual std::string not_learnable(const std::string& /*key*/, const double* /*params*/) const { return {}; }
   // accel += a(x, v); factor *= f(x, v).
   virtual void eval(const double* params, const TermPoint& pt, Vec2& accel, double& factor) const = 0;
   // Given a_bar = dL/da and f_bar = dL/df (f this term's own factor), adds dL/dx, dL/dv and
@@ -162,16 +165,23 @@ class TermFormula : public TermLaw {
   }
 };
 
-// Laws that act around a point within a range (radial, vortex): their fields, and the offset
-// r = x - center and distance d = |r| where they act (1e-9 < d <= range; the hard cutoff at the
-// range makes it not learnable).
+// Laws that act around a point within a range (radial, vortex): their fields (p[0..1] center,
+// p[2] strength, p[3] range, p[4] edge), and the offset r = x - center, distance d = |r| and
+// weight w where they act. edge = 0: a hard cutoff, w = 1 for 1e-9 < d <= range (the range is
+// then not learnable); edge > 0: the field fades out smoothly across the range,
+// w = 1 / (1 + exp(-4 (range - d) / edge)) (from 88% to 12% over one edge width), for
+// 1e-9 < d <= range + 3 edge (w < 7e-6 beyond), and the range is learnable.
 std::vector<TermField> centred_fields(const char* strength_meaning);
+std::string centred_not_learnable(const std::string& key, const double* params);
 template <class T>
-bool centred_offset(const T* p, const T x[2], T& rx, T& ry, T& d) {
+bool centred_offset(const T* p, const T x[2], T& rx, T& ry, T& d, T& w) {
   rx = x[0] - p[0];
   ry = x[1] - p[1];
   d = sqrt(rx * rx + ry * ry);
-  return value_of(d) >= 1e-9 && value_of(d) <= value_of(p[3]);
+  const double edge = value_of(p[4]);
+  if (!(value_of(d) >= 1e-9 && value_of(d) <= value_of(p[3]) + 3 * edge)) return false;
+  w = edge > 0 ? T(1) / (T(1) + exp(T(-4) * (p[3] - d) / p[4])) : T(1);
+  return true;
 }
 
 // Laws over a rectangle with smooth edges (slow_zone, counterflow): p[0..3] = xmin, ymin, xmax,

@@ -1,5 +1,6 @@
 // "radial" (alias "attractor"): towards (strength > 0) or away from (< 0) a point, within a range:
-// a = -strength r / d for 1e-9 < d <= range, r = x - center, d = |r|.
+// a = -strength w r / d, r = x - center, d = |r|, w = 1 within range (or a smooth edge there:
+// centred_offset).
 #include "engine/sim/terms.hpp"
 
 namespace crowdmpm {
@@ -13,12 +14,15 @@ class Radial : public TermFormula<Radial> {
     static const std::vector<TermField> f = centred_fields("> 0 pulls in, < 0 pushes out");
     return f;
   }
+  std::string not_learnable(const std::string& key, const double* params) const override {
+    return centred_not_learnable(key, params);
+  }
   template <class T>
   void formula(const T* p, const T x[2], const T*, const TermPoint&, T a[2], T&) const {
-    T rx, ry, d;
-    if (!centred_offset(p, x, rx, ry, d)) return;
-    a[0] = -p[2] * (rx / d);
-    a[1] = -p[2] * (ry / d);
+    T rx, ry, d, w;
+    if (!centred_offset(p, x, rx, ry, d, w)) return;
+    a[0] = -p[2] * w * (rx / d);
+    a[1] = -p[2] * w * (ry / d);
   }
 };
 }  // namespace

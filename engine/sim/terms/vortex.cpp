@@ -1,5 +1,6 @@
 // "vortex": turning around a point (strength > 0 counter-clockwise), within a range:
-// a = strength (-r_y, r_x) / d for 1e-9 < d <= range, r = x - center, d = |r|.
+// a = strength w (-r_y, r_x) / d, r = x - center, d = |r|, w = 1 within range (or a smooth edge
+// there: centred_offset).
 #include "engine/sim/terms.hpp"
 
 namespace crowdmpm {
@@ -12,12 +13,15 @@ class Vortex : public TermFormula<Vortex> {
     static const std::vector<TermField> f = centred_fields("> 0 counter-clockwise");
     return f;
   }
+  std::string not_learnable(const std::string& key, const double* params) const override {
+    return centred_not_learnable(key, params);
+  }
   template <class T>
   void formula(const T* p, const T x[2], const T*, const TermPoint&, T a[2], T&) const {
-    T rx, ry, d;
-    if (!centred_offset(p, x, rx, ry, d)) return;
-    a[0] = p[2] * (-ry / d);
-    a[1] = p[2] * (rx / d);
+    T rx, ry, d, w;
+    if (!centred_offset(p, x, rx, ry, d, w)) return;
+    a[0] = p[2] * w * (-ry / d);
+    a[1] = p[2] * w * (rx / d);
   }
 };
 }  // namespace
