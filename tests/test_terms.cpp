@@ -28,15 +28,6 @@ std::map<std::string, std::vector<double>> sample_params() {
           {"constriction", {0.4, 0.3, 0.6, 30, 0.2, 8, 0.3, 0.7, 1.5}}};
 }
 
-// The field of parameter k.
-const TermField& field_at(const TermLaw& law, size_t k) {
-  for (const auto& f : law.fields()) {
-    if (k < static_cast<size_t>(f.dims)) return f;
-    k -= static_cast<size_t>(f.dims);
-  }
-  throw Error("parameter index out of range");
-}
-
 // L = a_bar . a + f_bar . f of one law at one point.
 double scalar_of(const TermLaw& law, const std::vector<double>& p, const TermPoint& pt, const Vec2& a_bar, double f_bar) {
   Vec2 a = Vec2::Zero();
@@ -95,7 +86,7 @@ TEST_CASE("every force term law's vector-Jacobian product matches central differ
         }));
       }
       for (size_t k = 0; k < p.size(); ++k) {
-        if (!field_at(*law, k).learnable) continue;  // a hard cutoff's on/off switch (an edge)
+        if (!law->field(k).learnable) continue;  // a hard cutoff's on/off switch (an edge)
         check("parameter", pb[k], five([&](double d) {
           std::vector<double> q = p;
           q[k] += d;
@@ -162,8 +153,8 @@ TEST_CASE("force term parameter gradients through a simulated window match centr
   for (size_t t = 0; t < s.terms.size(); ++t)
     for (size_t k = 0; k < s.terms[t].params.size(); ++k) {
       const Term& term = s.terms[t];
-      if (!field_at(*term.law, k).learnable || !term.law->not_learnable(field_at(*term.law, k).key, term.params.data()).empty())
-        continue;  // the vortex's range: a hard cutoff
+      if (!term.law->why_not_learnable(term.law->field(k).key, term.params.data()).empty())
+        continue;  // an edge, or the vortex's range: a hard cutoff
       const double h = 1e-4 * std::max(1.0, std::abs(s.terms[t].params[k]));
       auto at_offset = [&](double d) {
         ScenarioDef sc = s;

@@ -30,13 +30,8 @@ const TermLaw* find_term_law(const std::string& type) {
 std::vector<TermField> centred_fields(const char* strength_meaning) {
   return {{"center", 2, "m", -1e9, 1e9, kRequired, true, "the centre"},
           {"strength", 1, "m/s^2", -50, 50, kRequired, true, strength_meaning},
-          {"range", 1, "m", 1e-9, 1e300, 1e300, true, "no acceleration farther than this (learnable with edge > 0)"},
+          {"range", 1, "m", 1e-9, 1e300, 1e300, true, "no acceleration farther than this (learnable with edge > 0)", "edge"},
           {"edge", 1, "m", 0, 10, 0, false, "0: a hard cutoff at the range; > 0: the field fades out over this width"}};
-}
-
-std::string centred_not_learnable(const std::string& key, const double* params) {
-  if (key == "range" && !(params[4] > 0)) return "with a hard cutoff (edge 0) it is not differentiable: give an edge > 0 m";
-  return {};
 }
 
 bool terms_need_density(const std::vector<Term>& terms) {
@@ -65,19 +60,35 @@ std::vector<std::string> Term::parameter_names() const {
 
 size_t Term::learned_count() const { return static_cast<size_t>(std::count(learn.begin(), learn.end(), 1)); }
 
-namespace {
-// The field and component of parameter k.
-const TermField& field_of(const TermLaw& law, size_t k) {
-  for (const auto& f : law.fields()) {
+const TermField& TermLaw::field(size_t k) const {
+  for (const auto& f : fields()) {
     if (k < static_cast<size_t>(f.dims)) return f;
     k -= static_cast<size_t>(f.dims);
   }
   throw Error("term parameter index out of range");
 }
-}  // namespace
+
+std::string TermLaw::why_not_learnable(const std::string& key, const double* params) const {
+  for (const auto& f : fields()) {
+    if (key == f.key) {
+      if (!f.learnable) return "not differentiable";
+      if (f.learnable_while) {
+        size_t k = 0;
+        for (const auto& g : fields()) {
+          if (std::string(g.key) == f.learnable_while && !(params[k] > 0))
+            return std::string("it is not differentiable while ") + g.key + " is 0 (a hard cutoff): give " + g.key +
+                   " > 0 " + g.unit;
+          k += static_cast<size_t>(g.dims);
+        }
+      }
+      return {};
+    }
+  }
+  return "no such key";
+}
 
 void Term::set_clamped(size_t k, double value) {
-  const TermField& f = field_of(*law, k);
+  const TermField& f = law->field(k);
   params.at(k) = std::clamp(value, f.lo, f.hi);
 }
 
@@ -131,9 +142,7 @@ Term Term::parse(const JsonReader& r, const std::vector<std::string>& group_ids)
       bool found = false;
       for (const auto& f : t.law->fields()) {
         if (key == f.key) {
-          if (!f.learnable)
-            lr->item(i).fail(std::string("\"") + key + "\" of a " + t.law->type() + " term cannot be learned (not differentiable)");
-          if (const std::string why = t.law->not_learnable(key, t.params.data()); !why.empty())
+          if (const std::string why = t.law->why_not_learnable(key, t.params.data()); !why.empty())
             lr->item(i).fail(std::string("\"") + key + "\" of a " + t.law->type() + " term cannot be learned: " + why);
           for (int c = 0; c < f.dims; ++c) t.learn[k + static_cast<size_t>(c)] = 1;
           found = true;

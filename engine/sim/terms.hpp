@@ -111,6 +111,9 @@ struct TermField {
   double default_value;     // NaN: required
   bool learnable;           // false where the term is not differentiable in it (a hard cutoff)
   const char* meaning;
+  // Learnable only while this other field is > 0 (a range whose cutoff is smooth only with an
+  // edge), or nullptr.
+  const char* learnable_while = nullptr;
 };
 
 class TermLaw {
@@ -125,9 +128,11 @@ class TermLaw {
   // Extra checks of a parsed parameter set beyond each field's range (xmin < xmax, ...);
   // returns an error message naming the key, or empty.
   virtual std::string check(const double* /*params*/) const { return {}; }
-  // Why a learnable field cannot be learned with these parameters (a range with a hard
-  // cutoff), or empty.
-  virtual std::string not_learnable(const std::string& /*key*/, const double* /*params*/) const { return {}; }
+  // The field of parameter k (a point's two parameters share one field).
+  const TermField& field(size_t k) const;
+  // Why field `key` cannot be learned with these parameters (not differentiable at all, or a
+  // range with a hard cutoff: TermField::learnable_while), or empty.
+  std::string why_not_learnable(const std::string& key, const double* params) const;
   // accel += a(x, v); factor *= f(x, v).
   virtual void eval(const double* params, const TermPoint& pt, Vec2& accel, double& factor) const = 0;
   // Given a_bar = dL/da and f_bar = dL/df (f this term's own factor), adds dL/dx, dL/dv and
@@ -168,11 +173,10 @@ class TermFormula : public TermLaw {
 // Laws that act around a point within a range (radial, vortex): their fields (p[0..1] center,
 // p[2] strength, p[3] range, p[4] edge), and the offset r = x - center, distance d = |r| and
 // weight w where they act. edge = 0: a hard cutoff, w = 1 for 1e-9 < d <= range (the range is
-// then not learnable); edge > 0: the field fades out smoothly across the range,
+// then not learnable: its learnable_while is "edge"); edge > 0: the field fades out smoothly across the range,
 // w = 1 / (1 + exp(-4 (range - d) / edge)) (from 88% to 12% over one edge width), for
 // 1e-9 < d <= range + 3 edge (w < 7e-6 beyond), and the range is learnable.
 std::vector<TermField> centred_fields(const char* strength_meaning);
-std::string centred_not_learnable(const std::string& key, const double* params);
 template <class T>
 bool centred_offset(const T* p, const T x[2], T& rx, T& ry, T& d, T& w) {
   rx = x[0] - p[0];

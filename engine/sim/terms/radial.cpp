@@ -14,9 +14,6 @@ class Radial : public TermFormula<Radial> {
     static const std::vector<TermField> f = centred_fields("> 0 pulls in, < 0 pushes out");
     return f;
   }
-  std::string not_learnable(const std::string& key, const double* params) const override {
-    return centred_not_learnable(key, params);
-  }
   template <class T>
   void formula(const T* p, const T x[2], const T*, const TermPoint&, T a[2], T&) const {
     T rx, ry, d, w;
