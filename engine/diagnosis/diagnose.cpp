@@ -952,12 +952,16 @@ DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& pr
       // From each start; the fit with the lowest validation loss (the training part's) is judged.
       FitResult f;
       Term cand = fresh;
+      size_t differs = 0;  // the first parameter in which the starts differ, named in the progress lines
+      while (differs + 1 < fresh.params.size() &&
+             std::all_of(starts.begin(), starts.end(), [&](const Term& s0) { return s0.params[differs] == starts[0].params[differs]; }))
+        ++differs;
       for (const Term& from : starts) {
         std::vector<Term> trial = terms;
         trial.push_back(from);
         FitResult g = fit(belief, trial, start, sp, d, d.candidates_lbfgs);
         if (starts.size() > 1)
-          say("    from range " + num(from.params[3], 2) + " m: " +
+          say("    from " + from.parameter_names()[differs] + " " + num(from.params[differs], 2) + ": " +
               (g.ok ? "validation loss " + num(g.validation, 4) + " m2" : "fit failed: " + g.error));
         if (!f.ok || (g.ok && g.validation < f.validation)) {
           f = std::move(g);
