@@ -105,6 +105,14 @@ TEST_CASE("diagnosis finds a concealed obstacle and writes the documented report
   }
   REQUIRE(rep.at("terms").size() == 1);
   CHECK(rep.at("terms")[0].at("type") == "obstacle");
+  // Before and after are the baseline's and the final model's, each fitted on while it improved.
+  const json& ff = rep.at("final_fits");
+  for (const char* m : {"baseline", "model"}) {
+    CHECK(ff.at(m).at("improving_fits").get<int>() >= 0);
+    CHECK(ff.at(m).at("improving_fits").get<int>() <= 3);
+    CHECK(ff.at(m).at("validation").get<double>() <= ff.at(m).at("validation_first").get<double>());
+  }
+  CHECK(v.at("heldout_error_global_before").get<double>() == Approx(r.heldout_before));
   // Everyone walked at the recording's typical free speed: people drawn around 1.3 m/s, sd 0.15
   // (read as it is: this request declines the default speed-density law).
   const json& ds = rep.at("desired_speed");
@@ -163,6 +171,7 @@ TEST_CASE("diagnosis of a recording with nothing concealed finds nothing", "[dia
   const json rep = load_json_file((c.dir / "out" / "report.json").string());
   CHECK(rep.at("verdict").at("type") == "none");
   CHECK(rep.at("terms").empty());
+  CHECK(rep.at("final_fits").is_null());  // nothing accepted: the baseline as fitted
   // By default the baseline got Weidmann's law, and the speeds were read under it: higher than
   // walked (the law slows people at any density; the social-force crowd slows less), the fitted
   // v0_scale bringing them back down.
@@ -353,6 +362,9 @@ TEST_CASE("diagnosis requests name what is wrong", "[diagnosis]") {
   fails_with({{"scenario", belief}, {"trajectories", rec}, {"options", {{"baseline_restarts", 21}}}}, "baseline_restarts");
   CHECK(parse_diagnose_job({{"scenario", belief}, {"trajectories", rec}, {"options", {{"baseline_restarts", 3}}}}).options.baseline_restarts == 3);
   CHECK(parse_diagnose_job({{"scenario", belief}, {"trajectories", rec}}).options.baseline_restarts == 0);
+  fails_with({{"scenario", belief}, {"trajectories", rec}, {"options", {{"final_restarts", -1}}}}, "final_restarts");
+  CHECK(parse_diagnose_job({{"scenario", belief}, {"trajectories", rec}, {"options", {{"final_restarts", 0}}}}).options.final_restarts == 0);
+  CHECK(parse_diagnose_job({{"scenario", belief}, {"trajectories", rec}}).options.final_restarts == 3);
   fails_with({{"scenario", belief}, {"trajectories", rec}, {"options", {{"min_gain_venue", 1.5}}}}, "min_gain_venue");
   CHECK(parse_diagnose_job({{"scenario", belief}, {"trajectories", rec}, {"options", {{"min_gain_venue", 0.08}}}}).options.min_gain_venue == 0.08);
   {

@@ -705,7 +705,7 @@ DiagnoseJob parse_diagnose_job(const json& request, const std::string& base_dir)
     op->require_object();
     op->allow_only({"train_share", "window", "stride", "horizon", "residual_stride", "cell", "time_bin", "z_threshold", "source_margin",
                     "null_replicates", "alpha", "max_terms", "min_gain", "min_gain_venue", "min_gain_z", "candidates", "params",
-                    "iterations", "learning_rate", "baseline_restarts", "threads", "seed", "desired_speed", "density_law", "baseline_optimizer",
+                    "iterations", "learning_rate", "baseline_restarts", "final_restarts", "threads", "seed", "desired_speed", "density_law", "baseline_optimizer",
                     "optimizer"});
     o.train_share = op->in_range("train_share", 0.2, 0.9, o.train_share);
     o.window = op->in_range("window", 0.2, 30, o.window);
@@ -725,6 +725,7 @@ DiagnoseJob parse_diagnose_job(const json& request, const std::string& base_dir)
     o.iterations = static_cast<int>(op->in_range("iterations", 1, 10000, o.iterations));
     o.learning_rate = op->in_range("learning_rate", 1e-6, 10, o.learning_rate);
     o.baseline_restarts = op->integer("baseline_restarts", 0, 20, o.baseline_restarts);
+    o.final_restarts = op->integer("final_restarts", 0, 20, o.final_restarts);
     o.baseline_lbfgs = op->one_of("baseline_optimizer", {"adam", "lbfgs"}, std::string(o.baseline_lbfgs ? "lbfgs" : "adam")) == "lbfgs";
     o.candidates_lbfgs = op->one_of("optimizer", {"adam", "lbfgs"}, std::string(o.candidates_lbfgs ? "lbfgs" : "adam")) == "lbfgs";
     o.threads = static_cast<int>(op->in_range("threads", 1, 256, o.threads));
@@ -815,21 +816,32 @@ DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& pr
         std::to_string(res.free_speed.people) + " people in the training part (spread " + num(res.free_speed.sd, 2) + " m/s)");
   }
 
+  // A fit run again from where it stopped (fresh optimiser state and learning rate) while its
+  // validation loss falls by more than 0.1%, at most `runs` times; returns how many runs improved it.
+  const auto fit_on = [&](const ScenarioDef& venue, FitResult& b, const DiagnoseOptions& o, bool lbfgs, int runs,
+                          const std::string& what) {
+    int improved = 0;
+    for (int k = 0; k < runs; ++k) {
+      FitResult again = fit(venue, b.terms, b.model, sp, o, lbfgs);
+      if (!again.ok || !(again.validation < b.validation * (1 - 1e-3))) break;
+      say(what + " continued: validation loss " + num(b.validation, 4) + " -> " + num(again.validation, 4) + " m2" +
+          values_of(again.model, o.params));
+      b = std::move(again);
+      ++improved;
+    }
+    return improved;
+  };
+
   // 1. The baseline: the user's venue and model, its material refitted on the training part.
   Model model = job.model;
   std::vector<Term> terms = belief.terms;
+  double validation = std::numeric_limits<double>::quiet_NaN();  // of the current model's fit
   if (!d.params.empty()) {
     // One fit, continued while it improves (baseline_restarts), under the options' reading.
     const auto fit_baseline = [&](const ScenarioDef& venue, const DiagnoseOptions& o, const std::string& label) {
       FitResult b = fit(venue, venue.terms, job.model, sp, o, o.baseline_lbfgs);
       if (!b.ok) throw Error("diagnosis: the baseline could not be fitted" + label + ": " + b.error);
-      for (int k = 0; k < o.baseline_restarts; ++k) {
-        FitResult again = fit(venue, b.terms, b.model, sp, o, o.baseline_lbfgs);
-        if (!again.ok || !(again.validation < b.validation * (1 - 1e-3))) break;
-        say("baseline fit" + label + " continued: validation loss " + num(b.validation, 4) + " -> " + num(again.validation, 4) + " m2" +
-            values_of(again.model, o.params));
-        b = std::move(again);
-      }
+      fit_on(venue, b, o, o.baseline_lbfgs, o.baseline_restarts, "baseline fit" + label);
       return b;
     };
     FitResult b = fit_baseline(belief, d, d.auto_speed ? std::string(" (everyone at the median free speed)") : std::string());
@@ -853,11 +865,14 @@ DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& pr
     }
     model = b.model;
     terms = b.terms;
+    validation = b.validation;
   }
   res.recording_speed = d.recording_speed;
   res.desired_speed = d.residual.desired_speed;
   for (Term& term : terms) term.learn.assign(term.params.size(), 0);
   res.baseline = model;
+  const std::vector<Term> baseline_terms = terms;
+  const double baseline_validation = validation;
   const std::vector<std::string> types = d.candidates.empty() ? diagnosis_candidates() : d.candidates;
   const DesiredSpeed ds = d.residual.desired_speed;
   const Membership everyone = members(sp.heldout, Reach{});
@@ -1035,12 +1050,42 @@ DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& pr
     h.accepted = true;
     terms = best_fit.terms;
     model = best_fit.model;
+    validation = best_fit.validation;
     base_err = std::move(best_err);
     res.terms.push_back(h.term);
     if (res.terms.size() == 1) {
       res.region = h.judged;
     }
     say("accepted " + term_name(h.term) + ": " + h.why);
+  }
+  // The report's before and after: the baseline and the final model, each fitted on while it
+  // improves (final_restarts), so that neither is compared short of its own convergence.
+  std::vector<WindowErrors> before_err = baseline_err;
+  if (!res.terms.empty() && !d.params.empty() && d.final_restarts > 0 && std::isfinite(baseline_validation) &&
+      std::isfinite(validation)) {
+    const auto converge = [&](const std::vector<Term>& with, const Model& from, double first, bool lbfgs, const std::string& what,
+                              std::vector<WindowErrors>& err, int& improved, double& last) {
+      FitResult f;
+      f.model = from;
+      f.terms = with;
+      f.validation = first;
+      f.ok = true;
+      improved = fit_on(belief, f, d, lbfgs, d.final_restarts, what);
+      last = f.validation;
+      if (improved > 0) err = rollout_errors(with_terms(belief, f.terms), f.model, sp.heldout, ds, d.threads);
+      return f.model;
+    };
+    res.validation_baseline_first = baseline_validation;
+    res.validation_model_first = validation;
+    res.baseline = converge(baseline_terms, res.baseline, baseline_validation, d.baseline_lbfgs, "for the report: the baseline's fit",
+                            before_err, res.final_fits_baseline, res.validation_baseline);
+    const Model final_model = converge(terms, model, validation, d.candidates_lbfgs, "for the report: the final model's fit", base_err,
+                                       res.final_fits_model, res.validation_model);
+    if (res.final_fits_model > 0) {
+      model = final_model;
+      after_terms = 0;  // the residual map after is made again with it
+    }
+    res.heldout_before = stats_of(before_err, sp.heldout, everyone).rms;
   }
   res.model = model;
   if (!res.terms.empty() && after_terms != res.terms.size()) {
@@ -1050,7 +1095,7 @@ DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& pr
     res.residual_after = res.residual_before;
   }
   const Membership region = members(sp.heldout, res.region);
-  res.region_before = stats_of(baseline_err, sp.heldout, region).rms;
+  res.region_before = stats_of(before_err, sp.heldout, region).rms;
   res.region_after = stats_of(base_err, sp.heldout, region).rms;
   res.heldout_after = stats_of(base_err, sp.heldout, everyone).rms;
   res.explanation = explain(d, res);
@@ -1214,6 +1259,11 @@ json diagnosis_json(const DiagnoseJob& job, const DiagnosisResult& r) {
                           (law ? ", each speed divided by the starting model's speed-density factor at the density ahead of them (the speed they would walk if nobody were ahead)" : "") +
                           "; spread: 1.4826 x the median absolute deviation";
   }
+  json final_fits = nullptr;
+  if (r.validation_model_first > 0)
+    final_fits = {{"definition", "before the held-out errors before and after were taken, the baseline and the final model were each fitted again while the validation loss (m^2, training part) fell by more than 0.1%, at most final_restarts times"},
+                  {"baseline", {{"improving_fits", r.final_fits_baseline}, {"validation_first", r.validation_baseline_first}, {"validation", r.validation_baseline}}},
+                  {"model", {{"improving_fits", r.final_fits_model}, {"validation_first", r.validation_model_first}, {"validation", r.validation_model}}}};
   return {{"format", "crowdmpm-diagnosis"},
           {"version", 1},
           {"scenario", job.scenario_path},
@@ -1233,6 +1283,7 @@ json diagnosis_json(const DiagnoseJob& job, const DiagnosisResult& r) {
           {"split", {{"train_end_s", r.train_end}, {"heldout_start_s", r.heldout_start}, {"heldout_end_s", r.heldout_end},
                      {"train_windows", r.train_windows}, {"heldout_windows", r.heldout_windows}}},
           {"baseline_model", r.baseline.to_json()},
+          {"final_fits", final_fits},
           {"recording", job.from_video ? json{{"video", job.video.path},
                                               {"tracks", job.detect ? "people detected in its frames and followed by its optical flow (video_tracks.txt)"
                                                                     : "points carried by its flow fields (video_tracks.txt)"},

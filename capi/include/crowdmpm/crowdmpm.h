@@ -263,6 +263,9 @@ CMPM_API cmpm_Status cmpm_PredictRecording(const char* request_json, const char*
  *                "params": [NAME, ...], "iterations": 60, "learning_rate": 0.05,
  *                "baseline_restarts": 0 (up to this many times, the baseline's fit run
  *                again from where it stopped while its validation loss falls by more than 0.1%),
+ *                "final_restarts": 3 (where terms were accepted, the baseline and the final
+ *                model are each fitted on the same way, at most this many times, before the
+ *                report's held-out errors before and after are taken; selection unaffected),
  *                "threads": 1, "seed": 1,
  *                "desired_speed": "auto" (the baseline fitted with "recording" and with
  *                "observed", the second kept only where its validation loss is under half the
