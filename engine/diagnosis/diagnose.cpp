@@ -969,7 +969,7 @@ DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& pr
       Term cand = fresh;
       size_t differs = 0;  // the first parameter in which the starts differ, named in the progress lines
       while (differs + 1 < fresh.params.size() &&
-             std::all_of(starts.begin(), starts.end(), [&](const Term& s0) { return s0.params[differs] == starts[0].params[differs]; }))
+             std::all_of(starts.begin(), starts.end(), [&](const Term& s0) { return s0.params[differs] == fresh.params[differs]; }))
         ++differs;
       for (const Term& from : starts) {
         std::vector<Term> trial = terms;
