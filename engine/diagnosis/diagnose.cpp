@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <limits>
 #include <map>
 #include <optional>
@@ -816,16 +817,16 @@ DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& pr
         std::to_string(res.free_speed.people) + " people in the training part (spread " + num(res.free_speed.sd, 2) + " m/s)");
   }
 
-  // A fit run again from where it stopped (fresh optimiser state and learning rate) while its
-  // validation loss falls by more than 0.1%, at most `runs` times; returns how many runs improved it.
-  const auto fit_on = [&](const ScenarioDef& venue, FitResult& b, const DiagnoseOptions& o, bool lbfgs, int runs,
-                          const std::string& what) {
+  // A fit run again from where it stopped (`again`: fresh optimiser state and learning rate) while
+  // its validation loss falls by more than 0.1%, at most `runs` times; returns how many runs improved it.
+  const auto fit_on = [&](FitResult& b, const std::function<FitResult(const FitResult&)>& again_from, int runs,
+                          const std::vector<std::string>& params, const std::string& what) {
     int improved = 0;
     for (int k = 0; k < runs; ++k) {
-      FitResult again = fit(venue, b.terms, b.model, sp, o, lbfgs);
+      FitResult again = again_from(b);
       if (!again.ok || !(again.validation < b.validation * (1 - 1e-3))) break;
       say(what + " continued: validation loss " + num(b.validation, 4) + " -> " + num(again.validation, 4) + " m2" +
-          values_of(again.model, o.params));
+          values_of(again.model, params));
       b = std::move(again);
       ++improved;
     }
@@ -833,15 +834,18 @@ DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& pr
   };
 
   // 1. The baseline: the user's venue and model, its material refitted on the training part.
-  Model model = job.model;
-  std::vector<Term> terms = belief.terms;
-  double validation = std::numeric_limits<double>::quiet_NaN();  // of the current model's fit
+  FitResult now;  // the current model: the baseline, then with each accepted term
+  now.model = job.model;
+  now.terms = belief.terms;
+  now.validation = std::numeric_limits<double>::quiet_NaN();  // of its fit
+  now.ok = true;
   if (!d.params.empty()) {
     // One fit, continued while it improves (baseline_restarts), under the options' reading.
     const auto fit_baseline = [&](const ScenarioDef& venue, const DiagnoseOptions& o, const std::string& label) {
       FitResult b = fit(venue, venue.terms, job.model, sp, o, o.baseline_lbfgs);
       if (!b.ok) throw Error("diagnosis: the baseline could not be fitted" + label + ": " + b.error);
-      fit_on(venue, b, o, o.baseline_lbfgs, o.baseline_restarts, "baseline fit" + label);
+      fit_on(b, [&](const FitResult& f) { return fit(venue, f.terms, f.model, sp, o, o.baseline_lbfgs); }, o.baseline_restarts,
+             o.params, "baseline fit" + label);
       return b;
     };
     FitResult b = fit_baseline(belief, d, d.auto_speed ? std::string(" (everyone at the median free speed)") : std::string());
@@ -863,30 +867,51 @@ DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& pr
         b = std::move(o);
       }
     }
-    model = b.model;
-    terms = b.terms;
-    validation = b.validation;
+    now = std::move(b);
   }
   res.recording_speed = d.recording_speed;
   res.desired_speed = d.residual.desired_speed;
-  for (Term& term : terms) term.learn.assign(term.params.size(), 0);
-  res.baseline = model;
-  const std::vector<Term> baseline_terms = terms;
-  const double baseline_validation = validation;
+  for (Term& term : now.terms) term.learn.assign(term.params.size(), 0);
+  res.baseline = now.model;
+  const FitResult baseline = now;
   const std::vector<std::string> types = d.candidates.empty() ? diagnosis_candidates() : d.candidates;
   const DesiredSpeed ds = d.residual.desired_speed;
+  // From here on the venue and options are fixed, and some fits are asked for twice from the same
+  // start (a round's refit of its starting model is the report's first further fit of the
+  // baseline, or of a final model that a last round left unchanged): each is made once, and each
+  // model's held-out errors computed once.
+  const auto key_of = [](const FitResult& f) {
+    json key = {{"model", f.model.to_json()}, {"terms", json::array()}};
+    for (const Term& term : f.terms) key["terms"].push_back(term.to_json());
+    return key.dump();
+  };
+  std::map<std::string, FitResult> refits;  // by start and optimiser
+  std::map<std::string, std::vector<WindowErrors>> heldout;  // by model
+  const auto refit = [&](const FitResult& from, bool lbfgs) -> const FitResult& {
+    const std::string k = key_of(from) + (lbfgs ? " lbfgs" : " adam");
+    auto it = refits.find(k);
+    if (it == refits.end()) it = refits.emplace(k, fit(belief, from.terms, from.model, sp, d, lbfgs)).first;
+    return it->second;
+  };
+  const auto heldout_errors = [&](const FitResult& f) -> const std::vector<WindowErrors>& {
+    const std::string k = key_of(f);
+    auto it = heldout.find(k);
+    if (it == heldout.end())
+      it = heldout.emplace(k, rollout_errors(with_terms(belief, f.terms), f.model, sp.heldout, ds, d.threads)).first;
+    return it->second;
+  };
   const Membership everyone = members(sp.heldout, Reach{});
   // The fitted baseline's held-out errors: what every round's best term is compared with first,
   // and the "before" of the report.
-  const std::vector<WindowErrors> baseline_err = rollout_errors(with_terms(belief, terms), model, sp.heldout, ds, d.threads);
+  const std::vector<WindowErrors> baseline_err = heldout_errors(now);
   std::vector<WindowErrors> base_err = baseline_err;
   res.heldout_before = stats_of(base_err, sp.heldout, everyone).rms;
-  say("baseline fitted: held-out error " + num(res.heldout_before, 3) + " m" + values_of(model, d.params));
+  say("baseline fitted: held-out error " + num(res.heldout_before, 3) + " m" + values_of(now.model, d.params));
 
   size_t after_terms = 0;  // accepted terms residual_after was made with (0: none made)
   for (int round = 0; round < std::max(1, d.max_terms); ++round) {
-    const ScenarioDef current = with_terms(belief, terms);
-    Localisation loc = localise(current, model, t, sp, d, std::max(res.tracking_noise, 0.005), round, true);
+    const ScenarioDef current = with_terms(belief, now.terms);
+    Localisation loc = localise(current, now.model, t, sp, d, std::max(res.tracking_noise, 0.005), round, true);
     if (round == 0) res.residual_before = loc.map;
     else {
       res.residual_after = loc.map;
@@ -906,11 +931,11 @@ DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& pr
     // reference: a candidate is compared with whichever of the two predicts the people it is
     // judged on better.
     std::vector<WindowErrors> refit_err;
-    Model refit_model = model;
+    Model refit_model = now.model;
     {
-      const FitResult again = fit(belief, terms, model, sp, d, d.candidates_lbfgs);
+      const FitResult& again = refit(now, d.candidates_lbfgs);
       if (again.ok) {
-        refit_err = rollout_errors(with_terms(belief, again.terms), again.model, sp.heldout, ds, d.threads);
+        refit_err = heldout_errors(again);
         refit_model = again.model;
       }
     }
@@ -929,7 +954,7 @@ DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& pr
     // still wander off along a flat direction: on an ORCA recording with a concealed gate, tau
     // 3.7 -> 6.4 s for 1.2 %, a start from which the gate's wall no longer fits).
     const bool from_refit = !refit_err.empty() && base_global.rms <= before_refit * (1 - d.min_gain);
-    const Model& start = from_refit ? refit_model : model;
+    const Model& start = from_refit ? refit_model : now.model;
     say("  baseline refitted alone: held-out error " + num(base_global.rms, 3) + " m (was " + num(before_refit, 3) + " m)" +
         values_of(refit_model, d.params) + (from_refit ? "; candidates start from it" : ""));
     std::optional<size_t> best;
@@ -938,7 +963,7 @@ DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& pr
     // Each significant region's local candidates, then the venue-wide ones once (judged on everyone).
     std::vector<std::pair<const Cluster*, std::vector<Term>>> trials, venue_wide;
     for (const Cluster* c : significant)
-      for (std::vector<Term>& starts : initial_candidates(*c, loc.global_mean, model, belief.geo, t, sp.train_to, types)) {
+      for (std::vector<Term>& starts : initial_candidates(*c, loc.global_mean, now.model, belief.geo, t, sp.train_to, types)) {
         if (!is_global(starts.front())) trials.emplace_back(c, std::move(starts));
         else if (c == significant.front()) venue_wide.emplace_back(nullptr, std::move(starts));
       }
@@ -972,7 +997,7 @@ DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& pr
              std::all_of(starts.begin(), starts.end(), [&](const Term& s0) { return s0.params[differs] == fresh.params[differs]; }))
         ++differs;
       for (const Term& from : starts) {
-        std::vector<Term> trial = terms;
+        std::vector<Term> trial = now.terms;
         trial.push_back(from);
         FitResult g = fit(belief, trial, start, sp, d, d.candidates_lbfgs);
         if (starts.size() > 1)
@@ -1048,9 +1073,7 @@ DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& pr
     if (!best) break;
     Hypothesis& h = res.hypotheses[*best];
     h.accepted = true;
-    terms = best_fit.terms;
-    model = best_fit.model;
-    validation = best_fit.validation;
+    now = std::move(best_fit);
     base_err = std::move(best_err);
     res.terms.push_back(h.term);
     if (res.terms.size() == 1) {
@@ -1061,36 +1084,27 @@ DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& pr
   // The report's before and after: the baseline and the final model, each fitted on while it
   // improves (final_restarts), so that neither is compared short of its own convergence.
   std::vector<WindowErrors> before_err = baseline_err;
-  if (!res.terms.empty() && !d.params.empty() && d.final_restarts > 0 && std::isfinite(baseline_validation) &&
-      std::isfinite(validation)) {
-    const auto converge = [&](const std::vector<Term>& with, const Model& from, double first, bool lbfgs, const std::string& what,
-                              std::vector<WindowErrors>& err, int& improved, double& last) {
-      FitResult f;
-      f.model = from;
-      f.terms = with;
-      f.validation = first;
-      f.ok = true;
-      improved = fit_on(belief, f, d, lbfgs, d.final_restarts, what);
-      last = f.validation;
-      if (improved > 0) err = rollout_errors(with_terms(belief, f.terms), f.model, sp.heldout, ds, d.threads);
-      return f.model;
+  if (!res.terms.empty() && !d.params.empty() && d.final_restarts > 0 && std::isfinite(baseline.validation) &&
+      std::isfinite(now.validation)) {
+    const auto converge = [&](FitResult& f, bool lbfgs, const std::string& what, std::vector<WindowErrors>& err,
+                              DiagnosisResult::FurtherFits& further) {
+      further.validation_first = f.validation;
+      further.improving =
+          fit_on(f, [&](const FitResult& from) { return refit(from, lbfgs); }, d.final_restarts, d.params, what);
+      further.validation = f.validation;
+      if (further.improving > 0) err = heldout_errors(f);
     };
-    res.validation_baseline_first = baseline_validation;
-    res.validation_model_first = validation;
-    res.baseline = converge(baseline_terms, res.baseline, baseline_validation, d.baseline_lbfgs, "for the report: the baseline's fit",
-                            before_err, res.final_fits_baseline, res.validation_baseline);
-    const Model final_model = converge(terms, model, validation, d.candidates_lbfgs, "for the report: the final model's fit", base_err,
-                                       res.final_fits_model, res.validation_model);
-    if (res.final_fits_model > 0) {
-      model = final_model;
-      after_terms = 0;  // the residual map after is made again with it
-    }
+    FitResult converged = baseline;
+    converge(converged, d.baseline_lbfgs, "for the report: the baseline's fit", before_err, res.final_baseline);
+    res.baseline = converged.model;
+    converge(now, d.candidates_lbfgs, "for the report: the final model's fit", base_err, res.final_model);
+    if (res.final_model.improving > 0) after_terms = 0;  // the residual map after is made again with it
     res.heldout_before = stats_of(before_err, sp.heldout, everyone).rms;
   }
-  res.model = model;
+  res.model = now.model;
   if (!res.terms.empty() && after_terms != res.terms.size()) {
-    const ScenarioDef current = with_terms(belief, terms);
-    res.residual_after = localise(current, model, t, sp, d, res.tracking_noise, d.max_terms, false).map;
+    const ScenarioDef current = with_terms(belief, now.terms);
+    res.residual_after = localise(current, now.model, t, sp, d, res.tracking_noise, d.max_terms, false).map;
   } else if (res.terms.empty()) {
     res.residual_after = res.residual_before;
   }
@@ -1259,11 +1273,14 @@ json diagnosis_json(const DiagnoseJob& job, const DiagnosisResult& r) {
                           (law ? ", each speed divided by the starting model's speed-density factor at the density ahead of them (the speed they would walk if nobody were ahead)" : "") +
                           "; spread: 1.4826 x the median absolute deviation";
   }
+  const auto further = [](const DiagnosisResult::FurtherFits& f) {
+    return json{{"improving_fits", f.improving}, {"validation_first", f.validation_first}, {"validation", f.validation}};
+  };
   json final_fits = nullptr;
-  if (r.validation_model_first > 0)
+  if (r.final_model.validation_first > 0)
     final_fits = {{"definition", "before the held-out errors before and after were taken, the baseline and the final model were each fitted again while the validation loss (m^2, training part) fell by more than 0.1%, at most final_restarts times"},
-                  {"baseline", {{"improving_fits", r.final_fits_baseline}, {"validation_first", r.validation_baseline_first}, {"validation", r.validation_baseline}}},
-                  {"model", {{"improving_fits", r.final_fits_model}, {"validation_first", r.validation_model_first}, {"validation", r.validation_model}}}};
+                  {"baseline", further(r.final_baseline)},
+                  {"model", further(r.final_model)}};
   return {{"format", "crowdmpm-diagnosis"},
           {"version", 1},
           {"scenario", job.scenario_path},

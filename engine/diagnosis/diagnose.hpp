@@ -154,9 +154,13 @@ struct DiagnosisResult {
   // With auto_speed: the baseline fit's validation loss (m^2) with each reading.
   double validation_recording = std::numeric_limits<double>::quiet_NaN(), validation_observed = std::numeric_limits<double>::quiet_NaN();
   // The further fits of the baseline and of the final model for the report (final_restarts):
-  // how many improved each, and the validation loss (m^2) before and after them.
-  int final_fits_baseline = 0, final_fits_model = 0;
-  double validation_baseline_first = 0, validation_baseline = 0, validation_model_first = 0, validation_model = 0;
+  // how many improved each, and the validation loss (m^2) before and after them; validation_first
+  // is 0 where none were made (no accepted term).
+  struct FurtherFits {
+    int improving = 0;
+    double validation_first = 0, validation = 0;
+  };
+  FurtherFits final_baseline, final_model;
   double train_end = 0, heldout_start = 0, heldout_end = 0;  // s
   long train_windows = 0, heldout_windows = 0;
   std::string explanation;
