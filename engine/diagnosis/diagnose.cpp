@@ -1045,6 +1045,8 @@ DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& pr
       };
       const double global_change = global.rms / base_global.rms - 1;
       std::string why = implausible(h.term, belief.geo);
+      // Nobody it acts on in the held-out part: nothing to judge it on (not a loss of 100 %).
+      if (why.empty() && base_region.person.empty()) why = "nobody it acts on is in the held-out part";
       if (why.empty()) why = judge(base_region);
       if (why.empty() && !(global_change <= 0.02)) why = "held-out error of everyone rises by " + num(100 * global_change, 1) + "%";
       if (why.empty()) {
