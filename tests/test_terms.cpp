@@ -24,7 +24,7 @@ std::map<std::string, std::vector<double>> sample_params() {
           {"slow_zone", {-0.5, -0.4, 1.2, 1.0, 0.4, 0.5}},
           {"wall_friction", {-0.8, -0.5, 1.4, 0.2, 1.5, 0.6}},
           {"density_speed", {1.9, 4.5}},
-          {"counterflow", {-0.5, -0.4, 1.2, 1.0, 160, 0.5, 2.5, 0.4}},
+          {"counterflow", {-0.5, -0.4, 1.2, 1.0, 160, 0.5, 2.5, 0.4, 1, -0.2}},  // picked by motion too
           {"constriction", {0.4, 0.3, 0.6, 30, 0.2, 8, 0.3, 0.7, 1.5}}};
 }
 
@@ -114,9 +114,10 @@ const char* kTermScene = R"({"format": "crowdmpm-scenario", "version": 1, "name"
              {"type": "attractor", "center": [3, 1], "strength": 0.2, "range": 4, "edge": 0.6},
              {"type": "obstacle", "center": [4.5, 4.2], "radius": 0.3, "strength": 4, "softness": 0.2},
              {"type": "wall_friction", "from": [0, 0.2], "to": [12, 0.2], "coefficient": 0.8, "range": 0.8},
-             {"type": "counterflow", "min": [2, 2], "max": [6, 5], "direction": 150, "share": 0.3, "push": 2},
+             {"type": "counterflow", "min": [2, 2], "max": [6, 5], "direction": 150, "share": 0.3, "push": 2, "by_motion": 1, "along": -1},
              {"type": "constriction", "center": [7, 3], "width": 1.5, "angle": 10, "strength": 4, "softness": 0.6}]})";
-// The obstacle and the constriction do not steer here (steer 0, where their gradient in steer is
+// The counter-flow picks by motion (its pick reads each person's velocity: that derivative goes
+// through the window too; its id draw has none). The obstacle and the constriction do not steer here (steer 0, where their gradient in steer is
 // still checked): the walking direction they steer by is read as it is, without its derivative.
 // Not in this scene: density_speed, whose density is read as it is (TermPoint), so its window
 // gradient leaves out how the parameters move the people that make the density; its law's own
@@ -205,6 +206,49 @@ TEST_CASE("force terms parse, name their errors and write back what they read", 
              Catch::Contains("forces[0].learn[0]") && Catch::Contains("learnable: acceleration"));
   CHECK_THAT(error_of(R"({"type": "slow_zone", "min": [1, 1], "max": [2, 3], "factor": 9})"),
              Catch::Contains("forces[0].factor") && Catch::Contains("[0, 5]"));
+  CHECK_THAT(error_of(R"({"type": "counterflow", "min": [0, 0], "max": [2, 2], "direction": 0, "share": 1, "by_motion": 0.5})"),
+             Catch::Contains("forces[0].by_motion") && Catch::Contains("0 or 1"));
+  CHECK_THAT(error_of(R"({"type": "counterflow", "min": [0, 0], "max": [2, 2], "direction": 0, "share": 1, "learn": ["by_motion"]})"),
+             Catch::Contains("forces[0].learn[0]") && Catch::Contains("cannot be learned"));
+}
+
+TEST_CASE("a counterflow picked by motion acts on the people moving its way or held up and not on those walking against it", "[terms]") {
+  const TermLaw* law = find_term_law("counterflow");
+  REQUIRE(law != nullptr);
+  // The box [0, 4] x [0, 4], heading 180 degrees (-x), pushed at 2 m/s^2; by id, everyone drawn (share 1.0 picks
+  // the draws below 1 with weights from 0.5 up), by motion the share is not read.
+  const std::vector<double> by_id = {0, 0, 4, 4, 180, 1, 2, 0.5, 0, -0.3};
+  std::vector<double> by_motion = by_id;
+  by_motion[8] = 1;
+  const auto apply = [&](const std::vector<double>& p, const Vec2& v, uint64_t id) {
+    TermPoint pt;
+    pt.x = Vec2(2, 2);
+    pt.v = v;
+    pt.id = id;
+    Vec2 a = Vec2::Zero();
+    double f = 1;
+    law->eval(p.data(), pt, a, f);
+    return std::make_pair(a, f);
+  };
+  for (uint64_t id = 1; id <= 50; ++id) {
+    INFO("id " << id);
+    // By id: the same for every motion.
+    const auto [a_with, f_with] = apply(by_id, Vec2(1.3, 0), id);
+    const auto [a_back, f_back] = apply(by_id, Vec2(-1, 0), id);
+    CHECK(a_with.isApprox(a_back));
+    CHECK(f_with == Approx(f_back));
+    // By motion: walking against the direction (+x at 1.3 m/s): not picked, own drive kept.
+    const auto [a_walk, f_walk] = apply(by_motion, Vec2(1.3, 0), id);
+    CHECK(f_walk > 0.99);
+    CHECK(a_walk.norm() < 0.02);
+    // Held up (0.1 m/s) or already heading the direction: picked, pushed along -x.
+    for (const Vec2& v : {Vec2(0.1, 0.05), Vec2(-0.8, 0)}) {
+      const auto [a, f] = apply(by_motion, v, id);
+      CHECK(f < 0.15);
+      CHECK(a.x() < -1.6);
+      CHECK(std::abs(a.y()) < 1e-9);
+    }
+  }
 }
 
 namespace {

@@ -84,6 +84,7 @@ const char* compared_param(const std::string& type) {
   if (type == "constriction") return "width";
   if (type == "attractor" || type == "vortex") return "strength";
   if (type == "slow_zone") return "factor";
+  if (type == "counterflow") return "direction";  // degrees
   return "";
 }
 
@@ -206,6 +207,8 @@ int main(int argc, char** argv) {
           row.param_name = compared_param(effect);
           if (!row.param_name.empty() && p.contains(row.param_name))
             row.param_error = std::abs(p.at(row.param_name).get<double>() - truth_params.at(row.param_name).get<double>());
+          if (row.param_name == "direction")  // the angle between the two directions
+            row.param_error = std::abs(std::remainder(row.param_error, 360.0));
           if (effect == "drift")
             row.param_error = std::hypot(p.at("ax").get<double>() - truth_params.at("acceleration")[0].get<double>(),
                                          p.at("ay").get<double>() - truth_params.at("acceleration")[1].get<double>()),
