@@ -117,8 +117,9 @@ const char* kTermScene = R"({"format": "crowdmpm-scenario", "version": 1, "name"
              {"type": "counterflow", "min": [2, 2], "max": [6, 5], "direction": 150, "share": 0.3, "push": 2, "by_motion": 1, "along": -1},
              {"type": "constriction", "center": [7, 3], "width": 1.5, "angle": 10, "strength": 4, "softness": 0.6}]})";
 // The counter-flow picks by motion (its pick reads each person's velocity: that derivative goes
-// through the window too; its id draw has none). The obstacle and the constriction do not steer here (steer 0, where their gradient in steer is
-// still checked): the walking direction they steer by is read as it is, without its derivative.
+// through the window too; its id draw has none). The obstacle and the constriction do not steer
+// here (steer 0, where their gradient in steer is still checked): the walking direction they
+// steer by is read as it is, without its derivative.
 // Not in this scene: density_speed, whose density is read as it is (TermPoint), so its window
 // gradient leaves out how the parameters move the people that make the density; its law's own
 // derivatives are checked above.

@@ -48,12 +48,13 @@ class Counterflow : public TermFormula<Counterflow> {
   void formula(const T* p, const T x[2], const T v[2], const TermPoint& pt, T a[2], T& f) const {
     const T r = smooth_box(p, x, p[7]);
     const T angle = p[4] * T(M_PI / 180);
-    const T w = value_of(p[8]) == 1 ? T(1) / (T(1) + exp(-(v[0] * cos(angle) + v[1] * sin(angle) - p[9]) / T(0.1)))
+    const T dx = cos(angle), dy = sin(angle);
+    const T w = value_of(p[8]) == 1 ? T(1) / (T(1) + exp(-(v[0] * dx + v[1] * dy - p[9]) / T(0.1)))
                                     : T(1) / (T(1) + exp((T(draw(pt.id)) - p[5]) / T(0.02)));
     const T wr = w * r;
     f = T(1) - wr;
-    a[0] = wr * p[6] * cos(angle);
-    a[1] = wr * p[6] * sin(angle);
+    a[0] = wr * p[6] * dx;
+    a[1] = wr * p[6] * dy;
   }
 };
 }  // namespace
