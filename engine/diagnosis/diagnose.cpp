@@ -642,7 +642,7 @@ namespace {
 // the job's recording.
 void read_video_recording(const JsonReader& v, const std::string& base_dir, const InputPolicy& input, DiagnoseJob& job) {
   v.require_object();
-  v.allow_only({"path", "calibration", "scale", "first", "frames", "fps", "method", "smoothing", "tracks", "body_radius", "contrast", "coast", "smooth", "cell",
+  v.allow_only({"path", "calibration", "scale", "first", "frames", "fps", "method", "smoothing", "tracks", "body_radius", "head_radius", "contrast", "coast", "smooth", "cell",
                 "density", "presence", "seed_speed", "min_speed", "min_moving_share"});
   job.from_video = true;
   VideoSource& src = job.video;
@@ -673,10 +673,11 @@ void read_video_recording(const JsonReader& v, const std::string& base_dir, cons
   job.detect = v.one_of("tracks", {"detect", "flow"}, std::string("detect")) == "detect";
   // Keys of the other method would be ignored: name them.
   for (const char* k : job.detect ? std::vector<const char*>{"cell", "density", "presence", "seed_speed", "min_speed", "min_moving_share"}
-                                  : std::vector<const char*>{"body_radius", "contrast", "coast", "smooth"})
+                                  : std::vector<const char*>{"body_radius", "head_radius", "contrast", "coast", "smooth"})
     if (v.has(k)) v.fail_at(k, std::string("applies to \"tracks\": \"") + (job.detect ? "flow" : "detect") + "\", not to the \"" +
                                    (job.detect ? "detect" : "flow") + "\" tracks asked for");
   job.detection.body_radius = v.in_range("body_radius", 0.05, 1, job.detection.body_radius);
+  job.detection.head_radius = v.in_range("head_radius", 0, 1, job.detection.head_radius);
   job.detection.contrast = v.in_range("contrast", 0.1, 100, job.detection.contrast);
   job.detection.coast = v.in_range("coast", 0, 60, job.detection.coast);
   job.detection.smooth = v.in_range("smooth", 0, 10, job.detection.smooth);

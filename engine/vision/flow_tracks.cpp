@@ -167,29 +167,50 @@ void DetectOptions::check() const {
   if (!(contrast >= 0.1 && contrast <= 100)) throw Error("detection: contrast must be in [0.1, 100], got " + format_number(contrast));
   if (!(gate > 0 && gate <= 5)) throw Error("detection: gate must be in (0, 5] m, got " + format_number(gate));
   if (!(coast >= 0 && coast <= 60)) throw Error("detection: coast must be in [0, 60] s, got " + format_number(coast));
+  if (!(head_radius == 0 || (head_radius >= 0.03 && head_radius <= body_radius)))
+    throw Error("detection: head_radius must be 0 (no head) or in [0.03, body_radius " + format_number(body_radius) + "] m, got " +
+                format_number(head_radius));
   if (!(smooth >= 0 && smooth <= 10)) throw Error("detection: smooth must be in [0, 10] s, got " + format_number(smooth));
 }
 
 namespace {
 
-// Blobs of radius `r` pixels standing out of the frame, bright or dark: local maxima of the
-// absolute difference of Gaussians (sigma r / sqrt 2 and 1.6 times that) above `contrast`
-// robust standard deviations of the response over the frame, the largest within 1.8 r.
-std::vector<Vec2> find_blobs(const cv::Mat& grey, double r, double contrast) {
-  cv::Mat f, g1, g2;
-  grey.convertTo(f, CV_32F);
+// The absolute difference of Gaussians (sigma r / sqrt 2 and 1.6 times that) of a frame, and its
+// robust spread (the median of |response| is 0.6745 standard deviations of a zero-mean normal).
+cv::Mat band_pass(const cv::Mat& f, double r, double& sd) {
+  cv::Mat g1, g2;
   const double s1 = std::max(0.7, r / std::sqrt(2.0));
   cv::GaussianBlur(f, g1, cv::Size(), s1);
   cv::GaussianBlur(f, g2, cv::Size(), 1.6 * s1);
   cv::Mat d = cv::abs(g1 - g2);
-  // Robust spread: the median of |response| is 0.6745 standard deviations of a zero-mean normal.
   std::vector<float> v;
   v.reserve(static_cast<size_t>(d.total() / 16 + 1));
   for (int y = 0; y < d.rows; y += 4)
     for (int x = 0; x < d.cols; x += 4) v.push_back(d.at<float>(y, x));
-  if (v.empty()) return {};
+  sd = 0;
+  if (v.empty()) return d;
   std::nth_element(v.begin(), v.begin() + static_cast<long>(v.size() / 2), v.end());
-  const double sd = v[v.size() / 2] / 0.6745;
+  sd = v[v.size() / 2] / 0.6745;
+  return d;
+}
+
+// How far from a body's detection its head is looked for, in body radii (a tilted view draws
+// the shoulders beside the head, not round it).
+constexpr double kHeadReach = 1.2;
+
+// Blobs of radius `r` pixels standing out of the frame, bright or dark: local maxima of the
+// absolute band-pass (band_pass) above `contrast` robust standard deviations of the response
+// over the frame, the largest within 1.8 r. With head > 0, each is then moved to the largest
+// response of a band-pass at `head` pixels within kHeadReach r of it (to a fraction of a pixel:
+// the vertex of the parabola through it and its neighbours each way), where that stands
+// `contrast` robust spreads out of its frame; else the body's place is kept.
+
+std::vector<Vec2> find_blobs(const cv::Mat& grey, double r, double contrast, double head) {
+  cv::Mat f;
+  grey.convertTo(f, CV_32F);
+  double sd = 0;
+  cv::Mat d = band_pass(f, r, sd);
+  if (d.empty()) return {};
   // (A frame mostly flat, masked or letterboxed has a median near 0: a tenth of a grey level at least.)
   const double threshold = contrast * std::max(sd, 0.1);
   // Two people stand at least a body's width apart: one detection within 1.8 body radii.
@@ -208,6 +229,28 @@ std::vector<Vec2> find_blobs(const cv::Mat& grey, double r, double contrast) {
         if (!taken) out.emplace_back(x, y);
       }
     }
+  if (head > 0) {
+    double hsd = 0;
+    const cv::Mat h = band_pass(f, head, hsd);
+    const double hthreshold = contrast * std::max(hsd, 0.1);
+    const int reach = std::max(1, static_cast<int>(std::lround(kHeadReach * r)));
+    for (Vec2& p : out) {
+      const int px = static_cast<int>(p.x()), py = static_cast<int>(p.y());
+      float best = -1;
+      int bx = px, by = py;
+      for (int y = std::max(1, py - reach); y <= std::min(h.rows - 2, py + reach); ++y)
+        for (int x = std::max(1, px - reach); x <= std::min(h.cols - 2, px + reach); ++x) {
+          if ((x - px) * (x - px) + (y - py) * (y - py) > reach * reach) continue;
+          const float a = h.at<float>(y, x);
+          if (a > best) best = a, bx = x, by = y;
+        }
+      if (best < hthreshold || bx <= 0 || by <= 0 || bx >= h.cols - 1 || by >= h.rows - 1) continue;
+      // Sub-pixel: the vertex of the parabola through the maximum and its neighbours, each way.
+      auto vertex = [](double a, double b, double c) { const double den = a - 2 * b + c; return den < 0 ? 0.5 * (a - c) / den : 0.0; };
+      p = Vec2(bx + vertex(h.at<float>(by, bx - 1), best, h.at<float>(by, bx + 1)),
+               by + vertex(h.at<float>(by - 1, bx), best, h.at<float>(by + 1, bx)));
+    }
+  }
   return out;
 }
 
@@ -265,7 +308,7 @@ TrajectorySet detected_tracks(const VideoSource& src, const Geometry& venue, con
   // Each frame after the first, with the flow from the frame before it.
   auto follow = [&](long frame, const cv::Mat& grey, const cv::Mat& flow) {
     std::vector<Vec2> px, ground;
-    for (const Vec2& p : find_blobs(grey, r_px, o.contrast)) {
+    for (const Vec2& p : find_blobs(grey, r_px, o.contrast, 0.5 * o.head_radius * ppm)) {
       const Vec2 x = cal.to_world(p);
       if (walkable(x)) px.push_back(p), ground.push_back(x);
     }
