@@ -407,6 +407,8 @@ TEST_CASE("diagnosis requests name what is wrong", "[diagnosis]") {
   fails_with({{"scenario", belief}, {"video", {{"path", rec}, {"scale", 0.01}, {"density", 2}}}}, "video.density: applies to \"tracks\": \"flow\"");
   fails_with({{"scenario", belief}, {"video", {{"path", rec}, {"scale", 0.01}, {"tracks", "flow"}, {"contrast", 3}}}},
              "video.contrast: applies to \"tracks\": \"detect\"");
+  fails_with({{"scenario", belief}, {"video", {{"path", rec}, {"scale", 0.01}, {"head_radius", 0.3}}}}, "video.head_radius");
+  fails_with({{"scenario", belief}, {"video", {{"path", rec}, {"scale", 0.01}, {"head_radius", 0.01}}}}, "video.head_radius");
   fails_with({{"scenario", belief}, {"video", {{"path", rec}, {"scale", 0.01}, {"first", 2.5}}}}, "video.first");
   fails_with({{"scenario", belief}, {"video", {{"path", (dir / "missing.avi").string()}, {"scale", 0.01}}}}, "missing.avi");
   fails_with({{"scenario", belief}, {"trajectories", rec}}, "too short to diagnose");
