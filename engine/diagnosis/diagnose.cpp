@@ -678,7 +678,7 @@ void read_video_recording(const JsonReader& v, const std::string& base_dir, cons
                                    (job.detect ? "detect" : "flow") + "\" tracks asked for");
   job.detection.body_radius = v.in_range("body_radius", 0.05, 1, job.detection.body_radius);
   job.detection.head_radius = v.in_range("head_radius", 0, 1, job.detection.head_radius);
-  if (job.detection.head_radius != 0 && !(job.detection.head_radius >= 0.03 && job.detection.head_radius <= job.detection.body_radius))
+  if (!head_radius_fits(job.detection.head_radius, job.detection.body_radius))
     v.at("head_radius").fail("a head's radius must be 0 (positions at the body's blob) or 0.03 m up to the body's radius " +
                              format_number(job.detection.body_radius) + " m");
   job.detection.contrast = v.in_range("contrast", 0.1, 100, job.detection.contrast);

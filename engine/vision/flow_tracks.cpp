@@ -167,10 +167,14 @@ void DetectOptions::check() const {
   if (!(contrast >= 0.1 && contrast <= 100)) throw Error("detection: contrast must be in [0.1, 100], got " + format_number(contrast));
   if (!(gate > 0 && gate <= 5)) throw Error("detection: gate must be in (0, 5] m, got " + format_number(gate));
   if (!(coast >= 0 && coast <= 60)) throw Error("detection: coast must be in [0, 60] s, got " + format_number(coast));
-  if (!(head_radius == 0 || (head_radius >= 0.03 && head_radius <= body_radius)))
+  if (!head_radius_fits(head_radius, body_radius))
     throw Error("detection: head_radius must be 0 (no head) or in [0.03, body_radius " + format_number(body_radius) + "] m, got " +
                 format_number(head_radius));
   if (!(smooth >= 0 && smooth <= 10)) throw Error("detection: smooth must be in [0, 10] s, got " + format_number(smooth));
+}
+
+bool head_radius_fits(double head_radius, double body_radius) {
+  return head_radius == 0 || (head_radius >= 0.03 && head_radius <= body_radius);
 }
 
 namespace {
@@ -233,6 +237,8 @@ std::vector<Vec2> find_blobs(const cv::Mat& grey, double r, double contrast, dou
     const cv::Mat h = band_pass(f, head, hsd);
     const double hthreshold = contrast * std::max(hsd, 0.1);
     const int reach = std::max(1, static_cast<int>(std::lround(kHeadReach * r)));
+    // Sub-pixel: the vertex of the parabola through the maximum and its neighbours, each way.
+    const auto vertex = [](double a, double b, double c) { const double den = a - 2 * b + c; return den < 0 ? 0.5 * (a - c) / den : 0.0; };
     for (Vec2& p : out) {
       const int px = static_cast<int>(p.x()), py = static_cast<int>(p.y());
       float best = -1;
@@ -243,9 +249,7 @@ std::vector<Vec2> find_blobs(const cv::Mat& grey, double r, double contrast, dou
           const float a = h.at<float>(y, x);
           if (a > best) best = a, bx = x, by = y;
         }
-      if (best < hthreshold || bx <= 0 || by <= 0 || bx >= h.cols - 1 || by >= h.rows - 1) continue;
-      // Sub-pixel: the vertex of the parabola through the maximum and its neighbours, each way.
-      auto vertex = [](double a, double b, double c) { const double den = a - 2 * b + c; return den < 0 ? 0.5 * (a - c) / den : 0.0; };
+      if (best < hthreshold) continue;  // (also where the search met no interior pixel: best -1)
       p = Vec2(bx + vertex(h.at<float>(by, bx - 1), best, h.at<float>(by, bx + 1)),
                by + vertex(h.at<float>(by - 1, bx), best, h.at<float>(by + 1, bx)));
     }

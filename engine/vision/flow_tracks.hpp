@@ -64,6 +64,9 @@ struct DetectOptions {
   void check() const;
 };
 
+// DetectOptions::head_radius is 0 (no head) or 0.03 m up to the body's radius.
+bool head_radius_fits(double head_radius, double body_radius);
+
 // Reads the video of `src` (its flow options; the calibration it names), detects and tracks
 // its people within the venue's domain and out of its solids (the frame `first` itself only
 // starts the flow: detection begins with the frame after it). Throws Error naming the file when it
