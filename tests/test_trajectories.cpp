@@ -4,11 +4,14 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <map>
+#include <random>
 #include <set>
 
 #include "engine/io/trajectory.hpp"
 #include "engine/observe/measure.hpp"
 #include "engine/observe/observe.hpp"
+#include "engine/observe/track_smoother.hpp"
 #include "support.hpp"
 
 using namespace crowdmpm;
@@ -197,4 +200,97 @@ TEST_CASE("classic density and speed in a measurement area count the people insi
   }
   CHECK(s[1].time == Approx(1.0));
   CHECK_THROWS_AS(classic_density_speed(t, Vec2(2, 2), Vec2(0, -2), 1), Error);
+}
+
+namespace {
+// People walking at about 1.3 m/s whose velocity changes by a white acceleration of density
+// `q` (m^2/s^3), 40 s at 10 frames/s; `seen` is the same with white position noise of sd `r`.
+struct Walkers {
+  TrajectorySet truth, seen;
+};
+Walkers walkers(double q, double r, uint32_t seed) {
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> gauss(0, 1);
+  Walkers w;
+  w.truth.framerate = w.seen.framerate = 10;
+  const double dt = 0.1;
+  for (long id = 1; id <= 60; ++id) {
+    Vec2 x(0, 0.5 * static_cast<double>(id)), v(1.3, 0);
+    for (long f = 0; f < 400; ++f) {
+      w.truth.points.push_back({id, f, x.x(), x.y()});
+      w.seen.points.push_back({id, f, x.x() + r * gauss(rng), x.y() + r * gauss(rng)});
+      // Exact discretisation of the constant-velocity model's white acceleration.
+      for (int a = 0; a < 2; ++a) {
+        const double g1 = gauss(rng), g2 = gauss(rng);
+        const double dv = std::sqrt(q * dt) * g1, dx = std::sqrt(q * dt * dt * dt) * (0.5 * g1 + g2 / std::sqrt(12.0));
+        x[a] += v[a] * dt + dx;
+        v[a] += dv;
+      }
+    }
+  }
+  w.truth.sort_checked();
+  w.seen.sort_checked();
+  return w;
+}
+// RMS over all points of position (m) and of the velocity from one frame to the next (m/s),
+// of `t` against `truth` (the same points in the same order).
+std::pair<double, double> track_errors(const TrajectorySet& t, const TrajectorySet& truth) {
+  std::map<std::pair<long, long>, Vec2> err;
+  double p = 0;
+  for (size_t i = 0; i < t.points.size(); ++i) {
+    const Vec2 e(t.points[i].x - truth.points[i].x, t.points[i].y - truth.points[i].y);
+    err[{t.points[i].id, t.points[i].frame}] = e;
+    p += e.squaredNorm();
+  }
+  double v = 0;
+  long n = 0;
+  for (const auto& [key, e] : err) {
+    const auto next = err.find({key.first, key.second + 1});
+    if (next == err.end()) continue;
+    v += ((next->second - e) * t.framerate).squaredNorm();
+    ++n;
+  }
+  return {std::sqrt(p / static_cast<double>(t.points.size())), std::sqrt(v / static_cast<double>(n))};
+}
+}  // namespace
+
+TEST_CASE("tracks are smoothed under the noise levels they show: jitter is read back and taken out", "[trajectories]") {
+  const Walkers w = walkers(0.1, 0.02, 7);
+  const TrackNoise n = estimate_track_noise(w.seen);
+  std::printf("track noise read back: position %.4f m (0.02), acceleration %.3f m2/s3 (0.1), %ld innovations\n", n.position,
+              n.acceleration, n.samples);
+  CHECK(n.samples > 40000);
+  CHECK(n.position == Approx(0.02).epsilon(0.1));
+  CHECK(n.acceleration > 0.05);
+  CHECK(n.acceleration < 0.2);
+  const TrajectorySet s = smoothed_tracks(w.seen, n);
+  REQUIRE(s.points.size() == w.seen.points.size());
+  const auto [raw_pos, raw_vel] = track_errors(w.seen, w.truth);
+  const auto [pos, vel] = track_errors(s, w.truth);
+  std::printf("smoothed: position error %.4f -> %.4f m, frame-to-frame velocity error %.3f -> %.3f m/s\n", raw_pos, pos, raw_vel, vel);
+  CHECK(pos < 0.6 * raw_pos);
+  CHECK(vel < 0.25 * raw_vel);
+  for (size_t i = 0; i < s.points.size(); ++i) {
+    REQUIRE(s.points[i].id == w.seen.points[i].id);
+    REQUIRE(s.points[i].frame == w.seen.points[i].frame);
+  }
+}
+
+TEST_CASE("clean tracks are left as they are by the smoother and too few frames give no noise levels", "[trajectories]") {
+  const Walkers w = walkers(0.1, 0, 8);
+  const TrackNoise n = estimate_track_noise(w.truth);
+  CHECK(n.position < 0.002);
+  const TrajectorySet s = smoothed_tracks(w.truth, n);
+  CHECK(track_errors(s, w.truth).first < 0.002);
+  // Two frames per person: no innovation to read noise from; nothing is changed.
+  TrajectorySet few;
+  few.framerate = 10;
+  for (long id = 1; id <= 30; ++id)
+    for (long f = 0; f < 2; ++f) few.points.push_back({id, f, 0.1 * static_cast<double>(f), static_cast<double>(id)});
+  few.sort_checked();
+  const TrackNoise none = estimate_track_noise(few);
+  CHECK(none.samples == 0);
+  CHECK(none.position == 0);
+  const TrajectorySet same = smoothed_tracks(few, none);
+  for (size_t i = 0; i < few.points.size(); ++i) CHECK(same.points[i].x == few.points[i].x);
 }

@@ -642,7 +642,7 @@ namespace {
 // the job's recording.
 void read_video_recording(const JsonReader& v, const std::string& base_dir, const InputPolicy& input, DiagnoseJob& job) {
   v.require_object();
-  v.allow_only({"path", "calibration", "scale", "first", "frames", "fps", "method", "smoothing", "tracks", "body_radius", "head_radius", "contrast", "coast", "smooth", "cell",
+  v.allow_only({"path", "calibration", "scale", "first", "frames", "fps", "method", "smoothing", "tracks", "body_radius", "head_radius", "contrast", "coast", "smoother", "smooth", "cell",
                 "density", "presence", "seed_speed", "min_speed", "min_moving_share"});
   job.from_video = true;
   VideoSource& src = job.video;
@@ -673,7 +673,7 @@ void read_video_recording(const JsonReader& v, const std::string& base_dir, cons
   job.detect = v.one_of("tracks", {"detect", "flow"}, std::string("detect")) == "detect";
   // Keys of the other method would be ignored: name them.
   for (const char* k : job.detect ? std::vector<const char*>{"cell", "density", "presence", "seed_speed", "min_speed", "min_moving_share"}
-                                  : std::vector<const char*>{"body_radius", "head_radius", "contrast", "coast", "smooth"})
+                                  : std::vector<const char*>{"body_radius", "head_radius", "contrast", "coast", "smoother", "smooth"})
     if (v.has(k)) v.fail_at(k, std::string("applies to \"tracks\": \"") + (job.detect ? "flow" : "detect") + "\", not to the \"" +
                                    (job.detect ? "detect" : "flow") + "\" tracks asked for");
   job.detection.body_radius = v.in_range("body_radius", 0.05, 1, job.detection.body_radius);
@@ -683,9 +683,10 @@ void read_video_recording(const JsonReader& v, const std::string& base_dir, cons
                              format_number(job.detection.body_radius) + " m");
   job.detection.contrast = v.in_range("contrast", 0.1, 100, job.detection.contrast);
   job.detection.coast = v.in_range("coast", 0, 60, job.detection.coast);
+  job.detection.smoother = v.one_of("smoother", {"rts", "none"}, std::string("rts")) == "rts";
   job.detection.smooth = v.in_range("smooth", 0, 10, job.detection.smooth);
   if (job.detect) {
-    job.recording = detected_tracks(src, job.scenario.geo, job.detection);
+    job.recording = detected_tracks(src, job.scenario.geo, job.detection, &job.track_noise);
   } else {
     const VideoFields vf = load_video_fields(src, nullptr);
     job.recording = flow_tracks(vf.flow, job.scenario.geo, job.tracks, src.path);
@@ -1324,6 +1325,12 @@ json diagnosis_json(const DiagnoseJob& job, const DiagnosisResult& r) {
                                               {"tracks", job.detect ? "people detected in its frames and followed by its optical flow (video_tracks.txt)"
                                                                     : "points carried by its flow fields (video_tracks.txt)"},
                                               {"tracks_method", job.detect ? "detect" : "flow"},
+                                              {"smoother", job.detect && job.detection.smoother
+                                                               ? json{{"method", "rts"},
+                                                                      {"position_noise_m", job.track_noise.position},
+                                                                      {"acceleration_noise_m2_s3", job.track_noise.acceleration},
+                                                                      {"innovations", job.track_noise.samples}}
+                                                               : json("none")},
                                               {"tracks_count", job.recording.person_count()}}
                                        : json{{"trajectories", job.trajectories_path}, {"people", job.recording.person_count()}}}};
 }

@@ -176,7 +176,7 @@ struct DiagnosisResult {
 //              "frames": 0 (to the end), "fps": 0 (the container's), "method": "farneback" | "dis",
 //              "smoothing": 0, "tracks": "detect" | "flow",
 //              detection: "body_radius": 0.18 (m), "head_radius": 0.11 (m), "contrast": 4, "coast": 1 (s),
-//              "smooth": 0 (s),
+//              "smoother": "rts" | "none", "smooth": 0 (s),
 //              flow tracks: "cell": 0.25 (m), "min_speed": 0.2 (m/s), "min_moving_share": 0.3,
 //              "density": 1.5 (persons/m^2), "seed_speed": 0.3 (m/s), "presence": 2 (s)},
 //    "options": {"train_share", "window", "stride", "horizon", "residual_stride", "cell",
@@ -190,6 +190,7 @@ struct DiagnoseJob {
   VideoSource video;          // what a video request gave
   bool detect = true;         // its people detected and followed (detected_tracks), or flow's tracks (flow_tracks)
   DetectOptions detection;
+  TrackNoise track_noise;     // the noise levels detected tracks were smoothed under (detection.smoother)
   FlowTrackOptions tracks;
   ScenarioDef scenario;
   Model model;                // with Weidmann's law added where density_law_added

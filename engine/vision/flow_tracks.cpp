@@ -291,7 +291,7 @@ void smooth_tracks(TrajectorySet& t, long half) {
 
 }  // namespace
 
-TrajectorySet detected_tracks(const VideoSource& src, const Geometry& venue, const DetectOptions& o) {
+TrajectorySet detected_tracks(const VideoSource& src, const Geometry& venue, const DetectOptions& o, TrackNoise* noise) {
   o.check();
   const VideoInfo info = probe_video(src.path, src.video);
   const Calibration cal = video_calibration(src, info);
@@ -377,6 +377,11 @@ TrajectorySet detected_tracks(const VideoSource& src, const Geometry& venue, con
     }
   if (flows == 0) throw Error(src.path + ": fewer than two frames in the range; flow needs two");
   out.framerate = reader.info().fps;
+  if (o.smoother && !out.points.empty()) {
+    const TrackNoise levels = estimate_track_noise(out);
+    out = smoothed_tracks(out, levels);
+    if (noise) *noise = levels;
+  }
   smooth_tracks(out, std::lround(o.smooth * info.fps / 2));
   if (out.points.empty()) throw Error(src.path + ": nobody was found in the video (no blob of " + format_number(o.body_radius) +
                                       " m stood out of the floor); check the calibration, or use the flow's tracks");

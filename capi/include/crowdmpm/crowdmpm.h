@@ -248,7 +248,8 @@ CMPM_API cmpm_Status cmpm_PredictRecording(const char* request_json, const char*
  *              "smoothing": 0, "tracks": "detect",
  *              detection: "body_radius": 0.18 (m), "head_radius": 0.11 (m; 0: positions at
  *              the body's blob, not its head), "contrast": 4 (robust sd of the blob response),
- *              "coast": 1 (s), "smooth": 0 (s);
+ *              "coast": 1 (s), "smoother": "rts" (each track smoothed under the noise
+ *              levels it shows, docs/diagnosis.md) | "none", "smooth": 0 (s);
  *              flow tracks: "cell": 0.25 (m), "min_speed": 0.2 (m/s: slower flow counts as
  *              still), "min_moving_share": 0.3, "density": 1.5 (persons/m2), "seed_speed": 0.3
  *              (m/s), "presence": 2 (s)},
