@@ -179,6 +179,11 @@ TrajectorySet smoothed_tracks(const TrajectorySet& t, const TrackNoise& noise) {
         // P_k F^T, F = [[1, dt], [0, 1]].
         const double a = f.cpp + dt * f.cpv, b = f.cpv, c = f.cpv + dt * f.cvv, d = f.cvv;  // [[a, b], [c, d]]
         const double det = p.cpp * p.cvv - p.cpv * p.cpv;
+        if (!(det > 0)) {  // (a covariance collapsed under a vanishing acceleration: the filter's estimate stands)
+          sm = f;
+          pos[k] = f.p;
+          continue;
+        }
         const double i00 = p.cvv / det, i01 = -p.cpv / det, i11 = p.cpp / det;
         const double c00 = a * i00 + b * i01, c01 = a * i01 + b * i11, c10 = c * i00 + d * i01, c11 = c * i01 + d * i11;
         const double dp = sm.p - p.p, dv = sm.v - p.v;

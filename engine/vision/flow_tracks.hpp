@@ -65,7 +65,7 @@ struct DetectOptions {
   // they show themselves (engine/observe/track_smoother.hpp), before `smooth`: a head's place
   // jitters by 2-3 cm from frame to frame, which the smoother takes out without averaging a
   // turn away (on the rendered suite's corridor: frame-to-frame velocity error 0.28 -> 0.06 m/s
-  // each way, position error 0.022 -> 0.013 m).
+  // each way, the position error's part varying from frame to frame 0.022 -> 0.013 m).
   bool smoother = true;
   double coast = 1;           // s a track coasts on the flow without a detection (a person the detector misses a while)
   void check() const;
