@@ -293,4 +293,7 @@ TEST_CASE("clean tracks are left as they are by the smoother and too few frames 
   CHECK(none.position == 0);
   const TrajectorySet same = smoothed_tracks(few, none);
   for (size_t i = 0; i < few.points.size(); ++i) CHECK(same.points[i].x == few.points[i].x);
+  // Levels that are no noise levels are refused, naming them.
+  CHECK_THROWS_WITH(smoothed_tracks(few, TrackNoise{-0.01, 0.1, 0}), Catch::Contains("position -0.01"));
+  CHECK_THROWS_WITH(smoothed_tracks(few, TrackNoise{0.01, std::nan(""), 0}), Catch::Contains("acceleration"));
 }

@@ -4,6 +4,9 @@
 #include <cmath>
 #include <unordered_map>
 
+#include "engine/core/error.hpp"
+#include "engine/core/json_reader.hpp"
+
 namespace crowdmpm {
 
 namespace {
@@ -73,6 +76,7 @@ State updated(const State& s, double z, double r2) {
   return o;
 }
 
+// The state after a track's first position (seen with variance r2), velocity not yet known.
 State initial(double z, double r2) { return State{z, 0, r2, 0, kVelocityPrior * kVelocityPrior}; }
 
 // Negative log likelihood per innovation (from each series' third position on, where the
@@ -82,7 +86,7 @@ double innovation_nll(const std::vector<Series>& all, double q, double r2) {
   long n = 0;
   for (const Series& s : all) {
     if (s.z.size() < 3) continue;
-    State x = updated(initial(s.z[0], r2), s.z[0], r2);
+    State x = initial(s.z[0], r2);
     for (size_t k = 1; k < s.z.size(); ++k) {
       const State pr = predicted(x, s.dt[k], q);
       if (k >= 2) {
@@ -150,8 +154,11 @@ TrackNoise estimate_track_noise(const TrajectorySet& t) {
 }
 
 TrajectorySet smoothed_tracks(const TrajectorySet& t, const TrackNoise& noise) {
+  if (!(std::isfinite(noise.position) && noise.position >= 0 && std::isfinite(noise.acceleration) && noise.acceleration >= 0))
+    throw Error("track smoother: noise levels must be finite and >= 0, got position " + format_number(noise.position) +
+                " m, acceleration " + format_number(noise.acceleration) + " m^2/s^3");
   TrajectorySet out = t;
-  if (!(noise.position > 0) || !(t.framerate > 0)) return out;
+  if (noise.position == 0 || !(t.framerate > 0)) return out;
   const double r2 = noise.position * noise.position, q = std::max(noise.acceleration, 1e-9);
   const double step = 1.0 / t.framerate;
   for (const auto& idx : tracks_of(t)) {
@@ -161,7 +168,7 @@ TrajectorySet smoothed_tracks(const TrajectorySet& t, const TrackNoise& noise) {
       const auto z = [&](size_t k) { return axis ? t.points[idx[k]].y : t.points[idx[k]].x; };
       std::vector<State> filt(n), pred(n);
       std::vector<double> dts(n, 0);
-      filt[0] = updated(initial(z(0), r2), z(0), r2);
+      filt[0] = initial(z(0), r2);
       pred[0] = filt[0];
       for (size_t k = 1; k < n; ++k) {
         dts[k] = static_cast<double>(t.points[idx[k]].frame - t.points[idx[k - 1]].frame) * step;

@@ -29,7 +29,8 @@ TrackNoise estimate_track_noise(const TrajectorySet& t);
 
 // The recording with each track's positions replaced by the Rauch-Tung-Striebel smoother's
 // under the noise levels given (frame gaps within a track are stepped over by their length).
-// Ids, frames and the frame rate are kept. position 0 returns the tracks unchanged.
+// Ids, frames and the frame rate are kept. position 0 returns the tracks unchanged; a level
+// that is negative or not finite is an Error naming it.
 TrajectorySet smoothed_tracks(const TrajectorySet& t, const TrackNoise& noise);
 
 }  // namespace crowdmpm
