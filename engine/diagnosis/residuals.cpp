@@ -141,15 +141,13 @@ ResidualSet null_residuals(const ScenarioDef& scenario, const Model& model, cons
 
 double tracking_noise(const TrajectorySet& t) {
   // Consecutive rows of one person three frames in a row.
-  std::unordered_map<long, std::vector<std::pair<long, Vec2>>> tracks;
-  for (const TrackPoint& p : t.points) tracks[p.id].emplace_back(p.frame, Vec2(p.x, p.y));
   std::vector<double> d2;
-  for (auto& [id, tr] : tracks) {
-    std::sort(tr.begin(), tr.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
-    for (size_t k = 1; k + 1 < tr.size(); ++k)
-      if (tr[k - 1].first + 1 == tr[k].first && tr[k].first + 1 == tr[k + 1].first)
-        d2.push_back((tr[k + 1].second - 2 * tr[k].second + tr[k - 1].second).squaredNorm());
-  }
+  for (const auto& tr : t.tracks())
+    for (size_t k = 1; k + 1 < tr.size(); ++k) {
+      const TrackPoint &a = t.points[tr[k - 1]], &b = t.points[tr[k]], &c = t.points[tr[k + 1]];
+      if (a.frame + 1 == b.frame && b.frame + 1 == c.frame)
+        d2.push_back((Vec2(c.x, c.y) - 2 * Vec2(b.x, b.y) + Vec2(a.x, a.y)).squaredNorm());
+    }
   if (d2.empty()) return 0;
   std::nth_element(d2.begin(), d2.begin() + static_cast<long>(d2.size() / 2), d2.end());
   // |d2|^2 of white noise of sd s per component is 6 s^2 times a chi-square with 2 degrees of

@@ -7,6 +7,7 @@
 #include <numeric>
 #include <set>
 #include <sstream>
+#include <unordered_map>
 
 #include "engine/core/error.hpp"
 #include "engine/core/json_reader.hpp"
@@ -133,6 +134,19 @@ size_t TrajectorySet::person_count() const {
   std::set<long> ids;
   for (const auto& p : points) ids.insert(p.id);
   return ids.size();
+}
+
+std::vector<std::vector<size_t>> TrajectorySet::tracks() const {
+  std::unordered_map<long, size_t> slot;
+  std::vector<std::vector<size_t>> out;
+  for (size_t i = 0; i < points.size(); ++i) {
+    const auto [it, fresh] = slot.try_emplace(points[i].id, out.size());
+    if (fresh) out.emplace_back();
+    out[it->second].push_back(i);
+  }
+  for (auto& idx : out)
+    std::stable_sort(idx.begin(), idx.end(), [&](size_t a, size_t b) { return points[a].frame < points[b].frame; });
+  return out;
 }
 
 long TrajectorySet::skip_gap(long f, long stride) const {

@@ -42,6 +42,9 @@ class TrajectorySet {
   long frame_min() const { return points.empty() ? 0 : points.front().frame; }
   long frame_max() const { return points.empty() ? 0 : points.back().frame; }
   size_t person_count() const;
+  // Each person's points (indices into `points`) in frame order, people in the order they first
+  // appear; the points need not be sorted.
+  std::vector<std::vector<size_t>> tracks() const;
   double duration() const { return framerate > 0 ? static_cast<double>(frame_max() - frame_min()) / framerate : 0; }
   // The points of one frame (a contiguous, id-sorted range).
   std::pair<const TrackPoint*, const TrackPoint*> frame(long f) const;

@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <unordered_map>
 
 #include "engine/core/error.hpp"
 #include "engine/core/json_reader.hpp"
@@ -11,40 +10,21 @@ namespace crowdmpm {
 
 namespace {
 
-// One track, one axis: frame steps (s) before each position (the first unused) and positions.
+// One track, one axis: the time (s) since the previous position (the first unused) and positions.
 struct Series {
   std::vector<double> dt;
   std::vector<double> z;
 };
 
-// Each track's points in frame order (indices into t.points).
-std::vector<std::vector<size_t>> tracks_of(const TrajectorySet& t) {
-  std::unordered_map<long, size_t> slot;
-  std::vector<std::vector<size_t>> out;
-  for (size_t i = 0; i < t.points.size(); ++i) {
-    const auto [it, fresh] = slot.try_emplace(t.points[i].id, out.size());
-    if (fresh) out.emplace_back();
-    out[it->second].push_back(i);
+// One person's series along one axis (0: x, 1: y); idx: their points in frame order.
+Series series_of(const TrajectorySet& t, const std::vector<size_t>& idx, int axis) {
+  Series s;
+  for (size_t k = 0; k < idx.size(); ++k) {
+    const TrackPoint& p = t.points[idx[k]];
+    s.dt.push_back(k ? static_cast<double>(p.frame - t.points[idx[k - 1]].frame) / t.framerate : 0.0);
+    s.z.push_back(axis ? p.y : p.x);
   }
-  for (auto& idx : out)
-    std::stable_sort(idx.begin(), idx.end(), [&](size_t a, size_t b) { return t.points[a].frame < t.points[b].frame; });
-  return out;
-}
-
-std::vector<Series> series_of(const TrajectorySet& t) {
-  std::vector<Series> out;
-  const double step = 1.0 / t.framerate;
-  for (const auto& idx : tracks_of(t))
-    for (int axis = 0; axis < 2; ++axis) {
-      Series s;
-      for (size_t k = 0; k < idx.size(); ++k) {
-        const TrackPoint& p = t.points[idx[k]];
-        s.dt.push_back(k ? static_cast<double>(p.frame - t.points[idx[k - 1]].frame) * step : 0.0);
-        s.z.push_back(axis ? p.y : p.x);
-      }
-      out.push_back(std::move(s));
-    }
-  return out;
+  return s;
 }
 
 // The filter's state: position, velocity and their covariance (p_pp, p_pv, p_vv).
@@ -105,7 +85,9 @@ double innovation_nll(const std::vector<Series>& all, double q, double r2) {
 TrackNoise estimate_track_noise(const TrajectorySet& t) {
   TrackNoise out;
   if (!(t.framerate > 0) || t.points.empty()) return out;
-  const std::vector<Series> all = series_of(t);
+  std::vector<Series> all;
+  for (const auto& idx : t.tracks())
+    for (int axis = 0; axis < 2; ++axis) all.push_back(series_of(t, idx, axis));
   const double dt = 1.0 / t.framerate;
   // Moments of second differences at consecutive frames: with white position noise of variance
   // R and white acceleration of density q, var(d2) = 6R + 2/3 q dt^3 and
@@ -160,20 +142,17 @@ TrajectorySet smoothed_tracks(const TrajectorySet& t, const TrackNoise& noise) {
   TrajectorySet out = t;
   if (noise.position == 0 || !(t.framerate > 0)) return out;
   const double r2 = noise.position * noise.position, q = std::max(noise.acceleration, 1e-9);
-  const double step = 1.0 / t.framerate;
-  for (const auto& idx : tracks_of(t)) {
+  for (const auto& idx : t.tracks()) {
     const size_t n = idx.size();
     if (n < 2) continue;
     for (int axis = 0; axis < 2; ++axis) {
-      const auto z = [&](size_t k) { return axis ? t.points[idx[k]].y : t.points[idx[k]].x; };
+      const Series track = series_of(t, idx, axis);
       std::vector<State> filt(n), pred(n);
-      std::vector<double> dts(n, 0);
-      filt[0] = initial(z(0), r2);
+      filt[0] = initial(track.z[0], r2);
       pred[0] = filt[0];
       for (size_t k = 1; k < n; ++k) {
-        dts[k] = static_cast<double>(t.points[idx[k]].frame - t.points[idx[k - 1]].frame) * step;
-        pred[k] = predicted(filt[k - 1], dts[k], q);
-        filt[k] = updated(pred[k], z(k), r2);
+        pred[k] = predicted(filt[k - 1], track.dt[k], q);
+        filt[k] = updated(pred[k], track.z[k], r2);
       }
       // Backward: x_k += C (x_k+1 smoothed - x_k+1 predicted), C = P_k F^T (P'_k+1)^-1.
       State sm = filt[n - 1];
@@ -182,7 +161,7 @@ TrajectorySet smoothed_tracks(const TrajectorySet& t, const TrackNoise& noise) {
       for (size_t k = n - 1; k-- > 0;) {
         const State& f = filt[k];
         const State& p = pred[k + 1];
-        const double dt = dts[k + 1];
+        const double dt = track.dt[k + 1];
         // P_k F^T, F = [[1, dt], [0, 1]].
         const double a = f.cpp + dt * f.cpv, b = f.cpv, c = f.cpv + dt * f.cvv, d = f.cvv;  // [[a, b], [c, d]]
         const double det = p.cpp * p.cvv - p.cpv * p.cpv;

@@ -269,11 +269,8 @@ struct Followed {
 // frame by a few centimetres, which at 10 fps is a speed error of tenths of a metre per second.
 void smooth_tracks(TrajectorySet& t, long half) {
   if (half <= 0) return;
-  std::unordered_map<long, std::vector<size_t>> by_id;
-  for (size_t i = 0; i < t.points.size(); ++i) by_id[t.points[i].id].push_back(i);
   std::vector<TrackPoint> smoothed = t.points;
-  for (auto& [id, idx] : by_id) {
-    std::sort(idx.begin(), idx.end(), [&](size_t a, size_t b) { return t.points[a].frame < t.points[b].frame; });
+  for (const auto& idx : t.tracks()) {
     const long n = static_cast<long>(idx.size());
     for (long k = 0; k < n; ++k) {
       const long h = std::min({half, k, n - 1 - k});
