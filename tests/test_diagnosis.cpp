@@ -59,6 +59,27 @@ json request_for(const Case& c) {
           {"options", {{"iterations", 30}, {"null_replicates", 3}, {"threads", 2}, {"max_terms", 1},
                        {"candidates", {"obstacle", "constriction", "drift", "slow_zone"}}}}};
 }
+// People keeping paces of their own (0.9, 1.3 and 1.7 m/s in three lanes of kCorridor, y 0.5, 1.5
+// and 2.5 m, no one in anyone's way), with uniform noise of +-0.01 m: 36 s at 10 fps.
+void write_paces(const std::string& path) {
+  std::FILE* f = std::fopen(path.c_str(), "w");
+  REQUIRE(f);
+  std::fprintf(f, "# framerate: 10\n# unit: m\n");
+  uint32_t state = 12345;
+  const auto noise = [&] {  // uniform in [-0.01, 0.01] m
+    state = state * 1664525u + 1013904223u;
+    return 0.02 * (static_cast<double>(state >> 8) / 16777216.0 - 0.5);
+  };
+  for (int frame = 0; frame < 360; ++frame)
+    for (int i = 0; i < 57; ++i) {
+      const int lane = i % 3;
+      const double pace = 0.9 + 0.4 * lane + 0.02 * (i % 5), entered = 0.6 * i;
+      const double x = -1.5 + pace * (0.1 * frame - entered);
+      if (x < -1.5 || x > 15.2) continue;
+      std::fprintf(f, "%d %d %.4f %.4f\n", i + 1, frame, x + noise(), 0.5 + lane + noise());
+    }
+  std::fclose(f);
+}
 }  // namespace
 
 TEST_CASE("diagnosis finds a concealed obstacle and writes the documented report", "[diagnosis]") {
@@ -310,31 +331,14 @@ TEST_CASE("diagnosis from a rendered video: its people are detected and followed
 }
 
 TEST_CASE("diagnosis reads each person's own pace where the baseline fits it better", "[diagnosis]") {
-  // People keeping paces of their own (0.9, 1.3 and 1.7 m/s in three lanes, no one in anyone's
-  // way), as agents of a simulator with individual preferred speeds walk: with everyone at one
-  // speed the baseline cannot fit them, with each at their own it can.
+  // People keeping paces of their own (write_paces), as agents of a simulator with individual
+  // preferred speeds walk: with everyone at one speed the baseline cannot fit them, with each at
+  // their own it can.
   const fs::path dir = fs::path(CROWDMPM_BINARY_DIR) / "tests" / "diagnosis" / "paces";
   fs::create_directories(dir);
   const std::string belief = (dir / "belief.json").string(), rec = (dir / "paces.txt").string();
   save_json_file(json::parse(kCorridor), belief);
-  {
-    std::FILE* f = std::fopen(rec.c_str(), "w");
-    std::fprintf(f, "# framerate: 10\n# unit: m\n");
-    uint32_t state = 12345;
-    const auto noise = [&] {  // uniform in [-0.01, 0.01] m
-      state = state * 1664525u + 1013904223u;
-      return 0.02 * (static_cast<double>(state >> 8) / 16777216.0 - 0.5);
-    };
-    for (int frame = 0; frame < 360; ++frame)
-      for (int i = 0; i < 57; ++i) {
-        const int lane = i % 3;
-        const double pace = 0.9 + 0.4 * lane + 0.02 * (i % 5), entered = 0.6 * i;
-        const double x = -1.5 + pace * (0.1 * frame - entered);
-        if (x < -1.5 || x > 15.2) continue;
-        std::fprintf(f, "%d %d %.4f %.4f\n", i + 1, frame, x + noise(), 0.5 + lane + noise());
-      }
-    std::fclose(f);
-  }
+  write_paces(rec);
   const json request = {{"scenario", belief},
                         {"trajectories", rec},
                         {"options", {{"iterations", 30}, {"null_replicates", 3}, {"threads", 2}, {"max_terms", 0}}}};
@@ -357,6 +361,36 @@ TEST_CASE("diagnosis reads each person's own pace where the baseline fits it bet
   fixed["options"]["desired_speed"] = "recording";
   CHECK(!parse_diagnose_job(fixed).options.auto_speed);
   CHECK(parse_diagnose_job(fixed).options.recording_speed);
+}
+
+TEST_CASE("the believed scenario's own terms marked learn are fitted with the baseline and saved as fitted", "[diagnosis]") {
+  // The user believes in a sideways drift of 0.6 m/s^2 and asks for its strength to be fitted;
+  // the recorded people walk straight along their lanes (write_paces).
+  const fs::path dir = fs::path(CROWDMPM_BINARY_DIR) / "tests" / "diagnosis" / "own_terms";
+  fs::create_directories(dir);
+  const std::string belief = (dir / "belief.json").string(), rec = (dir / "paces.txt").string();
+  json b = json::parse(kCorridor);
+  b["forces"] = json::array({{{"type", "drift"}, {"acceleration", {0, 0.6}}, {"learn", {"acceleration"}}}});
+  save_json_file(b, belief);
+  write_paces(rec);
+  const json request = {{"scenario", belief},
+                        {"trajectories", rec},
+                        {"options", {{"iterations", 30}, {"null_replicates", 3}, {"threads", 2}, {"max_terms", 0}}}};
+  const DiagnoseJob job = parse_diagnose_job(request);
+  const DiagnosisResult r = run_diagnosis(job);
+  REQUIRE(r.scenario_terms.size() == 1);
+  const double ay = r.scenario_terms[0].params[1];
+  std::printf("own terms: the believed drift's sideways 0.6 m/s^2 fitted to %.3f\n", ay);
+  CHECK(ay < 0.45);  // nobody drifts sideways: the fit lowers it
+  write_diagnosis(job, r, (dir / "out").string());
+  // Saved as fitted (not as believed), in the scenario to simulate and in the report.
+  const json sc = load_json_file((dir / "out" / "scenario.json").string());
+  REQUIRE(sc.at("forces").size() == 1);
+  CHECK(sc.at("forces")[0].at("acceleration")[1].get<double>() == Approx(ay));
+  const json rep = load_json_file((dir / "out" / "report.json").string());
+  REQUIRE(rep.at("scenario_terms").size() == 1);
+  CHECK(rep.at("scenario_terms")[0].at("acceleration")[1].get<double>() == Approx(ay));
+  CHECK(rep.at("terms").empty());
 }
 
 TEST_CASE("diagnosis requests name what is wrong", "[diagnosis]") {

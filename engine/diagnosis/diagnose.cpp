@@ -884,6 +884,7 @@ DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& pr
   }
   res.recording_speed = d.recording_speed;
   res.desired_speed = d.residual.desired_speed;
+  res.scenario_terms = now.terms;
   for (Term& term : now.terms) term.learn.assign(term.params.size(), 0);
   res.baseline = now.model;
   const FitResult baseline = now;
@@ -1275,6 +1276,9 @@ json diagnosis_json(const DiagnoseJob& job, const DiagnosisResult& r) {
     j["params"] = report_params(t);
     terms.push_back(j);
   }
+  // The believed scenario's own force terms, those it marks "learn" as the baseline fitted them.
+  json scenario_terms = json::array();
+  for (const Term& t : r.scenario_terms) scenario_terms.push_back(t.to_json());
   json speed = {{"mode", r.recording_speed ? "recording" : desired_speed_name(r.desired_speed)}};
   if (job.options.auto_speed && std::isfinite(r.validation_recording)) {
     speed["chosen_by"] = "desired_speed auto: each person's own speed (observed) where the baseline fitted with it has less than " +
@@ -1309,6 +1313,7 @@ json diagnosis_json(const DiagnoseJob& job, const DiagnosisResult& r) {
           {"regions", regions},
           {"hypotheses", hyps},
           {"terms", terms},
+          {"scenario_terms", scenario_terms},
           {"score_definition", "n ln(MSE) + k ln(n) over the people passing the hypothesis' region (everyone for a venue-wide term), n the disjoint windows their held-out time spans (the effective sample size), k the term's fitted parameters, minus the same of the baseline (lower is better)"},
           {"tracking_noise_m", r.tracking_noise},
           {"desired_speed", speed},
@@ -1382,7 +1387,7 @@ void write_diagnosis(const DiagnoseJob& job, const DiagnosisResult& res, const s
   json sc = ScenarioDef::load_json(job.scenario_path);
   sc["model"] = r.model.to_json();
   json forces = json::array();
-  for (const Term& t : job.scenario.terms) forces.push_back(t.to_json());
+  for (const Term& t : r.scenario_terms) forces.push_back(t.to_json());
   for (const Term& t : r.terms) forces.push_back(t.to_json());
   sc["forces"] = forces;
   if (r.recording_speed)  // the crowd's speeds as read from the recording, which v0_scale was fitted to

@@ -141,6 +141,9 @@ struct DiagnosisResult {
   Model baseline;                     // the fitted baseline
   Model model;                        // refitted with the accepted terms
   std::vector<Term> terms;            // accepted, in order
+  // The believed scenario's own force terms as the baseline fitted them (those it marks "learn";
+  // the others as given), in its order: the venue the accepted terms are added to.
+  std::vector<Term> scenario_terms;
   std::vector<Region> regions;
   std::vector<Hypothesis> hypotheses;
   double heldout_before = 0, heldout_after = 0;          // global RMS position error, m

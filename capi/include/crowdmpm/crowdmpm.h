@@ -236,8 +236,10 @@ CMPM_API cmpm_Status cmpm_PredictRecording(const char* request_json, const char*
 /* Diagnosis (docs/diagnosis.md), as `crowdmpm diagnose`: fits the model on the recording's
  * first part, locates where it and the recording disagree, fits candidate force terms there and
  * keeps those that lower the held-out error; writes report.json (verdict, regions, hypotheses,
- * terms), summary.txt, residual_before.png, residual_after.png, scenario.json (the venue with
- * the accepted terms) and model.json into the folder out_dir (created if missing). request_json:
+ * terms, scenario_terms), summary.txt, residual_before.png, residual_after.png, scenario.json
+ * (the venue with its own force terms as fitted -- those it marks "learn" are fitted with the
+ * baseline -- and the accepted terms) and model.json into the folder out_dir (created if
+ * missing). request_json:
  *   {"scenario": PATH, "trajectories": PATH, "model": PATH (optional; default the scenario's),
  *    or instead of "trajectories" a video, whose tracks become the recording (also written
  *    to out_dir/video_tracks.txt): its people detected in every frame and followed by its
