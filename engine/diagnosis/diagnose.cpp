@@ -598,6 +598,8 @@ std::string explain(const DiagnoseOptions& o, const DiagnosisResult& r);
 
 }  // namespace
 
+Reach term_reach(const Term& t) { return influence(t); }
+
 const std::vector<std::string>& diagnosis_candidates() {
   static const std::vector<std::string> c = {"obstacle", "constriction", "drift", "attractor", "vortex", "slow_zone",
                                              "wall_friction", "density_speed", "counterflow"};
@@ -1124,6 +1126,7 @@ DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& pr
   } else if (res.terms.empty()) {
     res.residual_after = res.residual_before;
   }
+  if (res.terms.empty()) res.region = d.report_reach;
   const Membership region = members(sp.heldout, res.region);
   res.region_before = stats_of(before_err, sp.heldout, region).rms;
   res.region_after = stats_of(base_err, sp.heldout, region).rms;
@@ -1253,7 +1256,8 @@ json diagnosis_json(const DiagnoseJob& job, const DiagnosisResult& r) {
   verdict["error_unit"] = error_unit(job.options) +
                           (r.region.everyone() ? ", everyone"
                                                : ", people passing within " + num(r.region.distance, 1) + " m of " + where(r.region) +
-                                                     ", where the first term acts (global figures beside)");
+                                                     (r.terms.empty() ? " (the report's region asked for; global figures beside)"
+                                                                      : ", where the first term acts (global figures beside)"));
   verdict["explanation"] = r.explanation;
   json regions = json::array();
   for (const Region& g : r.regions)

@@ -17,6 +17,16 @@
 
 namespace crowdmpm {
 
+// Where a term acts: the people passing within `distance` m of the segment [from, to] (a disc
+// round a point when from == to) judge it; distance < 0: everyone (a venue-wide term).
+struct Reach {
+  Vec2 from = Vec2::Zero(), to = Vec2::Zero();
+  double distance = -1;  // m
+  bool everyone() const { return distance < 0; }
+  Vec2 center() const { return 0.5 * (from + to); }
+  double radius() const { return everyone() ? -1 : 0.5 * (to - from).norm() + distance; }  // of the disc round it
+};
+
 struct DiagnoseOptions {
   double train_share = 0.6;   // first share of the recording: fitting and localisation; the rest is held out
   double window = 3;          // s of each fitting and held-out rollout
@@ -90,8 +100,17 @@ struct DiagnoseOptions {
   bool candidates_lbfgs = false;
   int threads = 1;
   uint64_t seed = 1;
+  // Where no term is accepted, the people the report's held-out errors before and after cover
+  // (region_before, region_after; default everyone). Not read from a request: for programs that
+  // compare diagnoses of one recording in one place (the suite's --truth-given).
+  Reach report_reach;
 };
 
+// Where a term acts, whose passers-by judge it (docs/diagnosis.md step 6): within a metre of an
+// obstacle's rim, within an attractor's or vortex's range (at most 3 m), over a zone's extent,
+// along a wall as far out as its drag reaches, along a constriction's wall near its opening;
+// everyone for the venue-wide terms (drift, density_speed).
+Reach term_reach(const Term& t);
 // The candidate types diagnosis tries, by their report names (drift, attractor, ...).
 const std::vector<std::string>& diagnosis_candidates();
 
@@ -112,16 +131,6 @@ struct Region {
   double radius = 0;
   double t_start = 0, t_end = 0, significance = 1, statistic = 0;
   int round = 0;
-};
-
-// Where a term acts: the people passing within `distance` m of the segment [from, to] (a disc
-// round a point when from == to) judge it; distance < 0: everyone (a venue-wide term).
-struct Reach {
-  Vec2 from = Vec2::Zero(), to = Vec2::Zero();
-  double distance = -1;  // m
-  bool everyone() const { return distance < 0; }
-  Vec2 center() const { return 0.5 * (from + to); }
-  double radius() const { return everyone() ? -1 : 0.5 * (to - from).norm() + distance; }  // of the disc round it
 };
 
 struct Hypothesis {
