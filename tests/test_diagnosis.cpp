@@ -364,6 +364,7 @@ TEST_CASE("diagnosis reads each person's own pace where the baseline fits it bet
 }
 
 TEST_CASE("the believed scenario's own terms marked learn are fitted with the baseline and saved as fitted", "[diagnosis]") {
+  // Also: a region asked for by a program (report_reach) is what the report's errors cover.
   // The user believes in a sideways drift of 0.6 m/s^2 and asks for its strength to be fitted;
   // the recorded people walk straight along their lanes (write_paces).
   const fs::path dir = fs::path(CROWDMPM_BINARY_DIR) / "tests" / "diagnosis" / "own_terms";
@@ -391,6 +392,18 @@ TEST_CASE("the believed scenario's own terms marked learn are fitted with the ba
   REQUIRE(rep.at("scenario_terms").size() == 1);
   CHECK(rep.at("scenario_terms")[0].at("acceleration")[1].get<double>() == Approx(ay));
   CHECK(rep.at("terms").empty());
+  CHECK(r.region_before == Approx(r.heldout_before));  // no term accepted: everyone
+  // Asked for a region (DiagnoseOptions::report_reach), the errors before and after cover the
+  // people passing within a metre of the slow lane's middle: a share of everyone, another error.
+  DiagnoseJob here = job;
+  here.options.report_reach = Reach{Vec2(7, 0.5), Vec2(7, 0.5), 1.0};
+  const DiagnosisResult rr = run_diagnosis(here);
+  CHECK(rr.heldout_before == Approx(r.heldout_before));
+  CHECK(std::isfinite(rr.region_before));
+  CHECK(rr.region_before != Approx(rr.heldout_before).epsilon(1e-3));
+  CHECK(rr.region_after == Approx(rr.region_before));
+  const json v = diagnosis_json(here, rr).at("verdict");
+  CHECK(v.at("error_unit").get<std::string>().find("the report's region asked for") != std::string::npos);
 }
 
 TEST_CASE("diagnosis requests name what is wrong", "[diagnosis]") {
