@@ -26,6 +26,7 @@
 #include <vector>
 
 #include "engine/core/input.hpp"
+#include "engine/core/json_reader.hpp"
 #include "engine/diagnosis/diagnose.hpp"
 #include "engine/diagnosis/synthetic.hpp"
 #include "engine/vision/synthetic.hpp"
@@ -203,9 +204,9 @@ int main(int argc, char** argv) {
         // people passing where the concealed effect acts, as the given run's are.
         Reach truth_reach;
         if (truth_given) {
-          if (c.contains("obstacle")) {
-            const Vec2 at(c.at("obstacle").at("center")[0].get<double>(), c.at("obstacle").at("center")[1].get<double>());
-            truth_reach = Reach{at, at, c.at("obstacle").at("radius").get<double>() + 1.0};  // as an obstacle term's
+          if (c.contains("obstacle")) {  // where an obstacle term there would be judged
+            const json o = {{"type", "obstacle"}, {"center", c.at("obstacle").at("center")}, {"radius", c.at("obstacle").at("radius")}};
+            truth_reach = term_reach(Term::parse(JsonReader(o, "concealed obstacle"), {}));
           } else if (c.contains("force")) {
             truth_reach = term_reach(truth_def.terms.at(0));
           }
