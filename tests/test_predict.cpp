@@ -3,6 +3,8 @@
 #include <catch2/catch.hpp>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
+#include <fstream>
 #include <sstream>
 
 #include "engine/predict/predict.hpp"
@@ -55,6 +57,42 @@ TEST_CASE("velocities and walking speeds from a recording sampled every third fr
   CHECK(s.v[0].y() == Approx(0.0).margin(1e-12));
   CHECK(s.speed[0] == Approx(1.0));
   CHECK(observe_at(t, 31, 0.5, 1.0).ids.empty());  // nobody recorded at frame 31
+}
+
+TEST_CASE("a prediction job on a recording sampled every 4th frame compares at every whole second", "[predict]") {
+  // Rows every 0.4 s (framerate 10): 1 s after a window's start has no row of its own.
+  const auto dir = std::filesystem::temp_directory_path() / "crowdmpm_sparse_predict";
+  std::filesystem::create_directories(dir);
+  {
+    std::ofstream rec(dir / "sparse.txt");
+    rec << "# framerate: 10\n";
+    for (int id = 1; id <= 2; ++id)
+      for (int f = 0; f <= 120; f += 4) rec << id << " " << f << " " << 1 + 0.1 * f << " " << 3.0 * id << "\n";
+    std::ofstream(dir / "open.json") << R"({"format": "crowdmpm-scenario", "version": 1,
+      "domain": {"min": [0, 0], "max": [20, 8]}, "time": {"duration": 10},
+      "groups": [{"spawn": {"rect": [1, 1, 2, 2]}, "count": 0, "desired_speed": 1.0, "behaviour": {"type": "heading"}}]})";
+  }
+  PredictOptions o;
+  o.observe = 1.2;
+  o.horizon = 3;
+  o.grid_min_mass = 0.05;  // two people: the grid velocity error compares the nodes each covers
+  const PredictJob job = make_predict_job((dir / "open.json").string(), (dir / "sparse.txt").string(), {}, o, DesiredSpeed::Observed);
+  CHECK(job.frame_step == 4);
+  CHECK(job.interpolated_rows == 2 * 30 * 3);
+  const std::vector<PredictionReport> reports = run_prediction(job);
+  REQUIRE(reports.size() == 2);
+  for (const PredictionReport& r : reports) {
+    INFO(r.method);
+    REQUIRE(r.horizons.size() == 3);
+    for (const auto& h : r.horizons) {
+      CHECK(h.samples > 0);
+      CHECK(std::isfinite(h.grid_velocity_rms));
+    }
+  }
+  // Straight walkers at 1 m/s: constant velocity is exact at every second.
+  for (const auto& h : reports[0].horizons) CHECK(h.fde == Approx(0).margin(1e-9));
+  CHECK(prediction_json(job, reports)["recording_frame_step"] == 4);
+  std::filesystem::remove_all(dir);
 }
 
 TEST_CASE("free speeds: the 90th percentile of a person's walking speed along the whole track", "[predict]") {

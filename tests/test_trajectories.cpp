@@ -108,6 +108,26 @@ TEST_CASE("trajectory text: errors do not quote the file's contents", "[trajecto
   }
 }
 
+TEST_CASE("a recording sampled every few frames: its step is found and the frames between rows are interpolated", "[trajectories]") {
+  // Person 1 every 4th frame at 1 m/s in x (framerate 10), then out of view from frame 8 to 40;
+  // person 2 every 4th frame in y; person 3 one row only.
+  TrajectorySet t = TrajectorySet::parse("# framerate: 10\n1 0 0 0\n1 4 0.4 0\n1 8 0.8 0\n1 40 4 0\n"
+                                         "2 0 5 1\n2 4 5 1.2\n2 8 5 1.4\n3 4 9 9\n", "sparse");
+  CHECK(t.frame_step() == 4);
+  const size_t before = t.points.size();
+  CHECK(t.fill_frames(t.frame_step()) == 4 * 3);  // frames 1-3 and 5-7 of persons 1 and 2
+  CHECK(t.points.size() == before + 12);
+  auto [b, e] = t.frame(6);
+  REQUIRE(e - b == 2);
+  CHECK(b[0].id == 1);
+  CHECK(b[0].x == Approx(0.6));
+  CHECK(b[1].y == Approx(1.3));
+  CHECK(t.frame(20).first == t.frame(20).second);  // the 32-frame gap is left: person 1 out of view
+  CHECK(t.frame_step() == 1);
+  CHECK(t.fill_frames(4) == 0);
+  CHECK(TrajectorySet::parse("# framerate: 10\n1 0 0 0\n", "one").frame_step() == 1);
+}
+
 TEST_CASE("written trajectories read back", "[trajectories]") {
   auto path = (std::filesystem::temp_directory_path() / "crowdmpm_traj_roundtrip.txt").string();
   ScenarioDef s = ScenarioDef::load(test::scenario_path("drill"));

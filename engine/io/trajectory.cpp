@@ -4,6 +4,7 @@
 #include <cerrno>
 #include <cmath>
 #include <cstring>
+#include <map>
 #include <numeric>
 #include <set>
 #include <sstream>
@@ -156,6 +157,34 @@ long TrajectorySet::skip_gap(long f, long stride) const {
   const long next = e->frame;  // the first recorded frame after f
   const long k = (next - f + stride - 1) / stride;
   return f + k * stride;
+}
+
+long TrajectorySet::frame_step() const {
+  std::map<long, size_t> steps;  // frames between consecutive rows -> how often
+  for (const auto& track : tracks())
+    for (size_t k = 1; k < track.size(); ++k) ++steps[points[track[k]].frame - points[track[k - 1]].frame];
+  long best = 1;
+  size_t most = 0;
+  for (const auto& [step, n] : steps)
+    if (n > most) best = step, most = n;
+  return best;
+}
+
+size_t TrajectorySet::fill_frames(long max_gap) {
+  std::vector<TrackPoint> added;
+  for (const auto& track : tracks())
+    for (size_t k = 1; k < track.size(); ++k) {
+      const TrackPoint &a = points[track[k - 1]], &b = points[track[k]];
+      const long gap = b.frame - a.frame;
+      if (gap < 2 || gap > max_gap) continue;
+      for (long f = a.frame + 1; f < b.frame; ++f) {
+        const double w = static_cast<double>(f - a.frame) / static_cast<double>(gap);
+        added.push_back({a.id, f, a.x + w * (b.x - a.x), a.y + w * (b.y - a.y)});
+      }
+    }
+  points.insert(points.end(), added.begin(), added.end());
+  if (!added.empty()) sort_checked();
+  return added.size();
 }
 
 std::pair<const TrackPoint*, const TrackPoint*> TrajectorySet::frame(long f) const {

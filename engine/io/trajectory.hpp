@@ -53,6 +53,13 @@ class TrajectorySet {
   // step through it cost the number of recorded frames, not the span of frame numbers (a
   // recording may leave a gap of any length).
   long skip_gap(long f, long stride) const;
+  // The most common number of frames between a person's consecutive rows: 1 for a recording with
+  // a row every frame, 10 for ETH/UCY's every 10th frame (1 when nobody has two rows).
+  long frame_step() const;
+  // Adds a row for every frame strictly between two consecutive rows of a person at most max_gap
+  // frames apart, its position interpolated linearly between them; a longer gap (the person out
+  // of view) is left as it is. Returns the number of rows added; the points stay sorted.
+  size_t fill_frames(long max_gap);
 };
 
 // Writes frames of a world (or a recording's points) as "id frame x y z" rows under a

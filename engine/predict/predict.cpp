@@ -162,6 +162,8 @@ PredictJob load_predict_job(const std::string& scenario_path, const std::string&
   for (const auto& p : model_paths) job.models.push_back(Model::load(p, o.input));
   job.recording = TrajectorySet::read(trajectories_path, 0, o.input);
   check_recording_scale(job.recording, job.scenario.geo, job.scenario.source);
+  job.frame_step = job.recording.frame_step();
+  if (job.frame_step > 1) job.interpolated_rows = job.recording.fill_frames(job.frame_step);
   job.options = o;
   job.desired_speed = ds;
   return job;
@@ -219,6 +221,8 @@ json prediction_json(const PredictJob& job, const std::vector<PredictionReport>&
             {"horizon_s", job.options.horizon},
             {"stride_s", job.options.stride},
             {"desired_speed", desired_speed_name(job.desired_speed)},
+            {"recording_frame_step", job.frame_step},
+            {"interpolated_rows", job.interpolated_rows},
             {"units", "metres, m/s"},
             {"methods", json::array()}};
   for (const auto& r : reports) j["methods"].push_back(report_to_json(r));

@@ -69,6 +69,11 @@ struct PredictJob {
   std::vector<Model> models;  // the scenario's first, then the models given
   PredictOptions options;
   DesiredSpeed desired_speed = DesiredSpeed::Observed;
+  // A recording with a row every few frames (ETH/UCY: every 10th) is compared at every frame,
+  // whole seconds included: the frames between a person's consecutive rows that far apart are
+  // filled by linear interpolation when it is loaded (TrajectorySet::fill_frames).
+  long frame_step = 1;          // the recording's most common step between a person's rows
+  size_t interpolated_rows = 0; // rows so added
 };
 // Loads the scenario, models and recording.
 PredictJob load_predict_job(const std::string& scenario_path, const std::string& trajectories_path,
