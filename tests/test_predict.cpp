@@ -92,6 +92,16 @@ TEST_CASE("a prediction job on a recording sampled every 4th frame compares at e
   // Straight walkers at 1 m/s: constant velocity is exact at every second.
   for (const auto& h : reports[0].horizons) CHECK(h.fde == Approx(0).margin(1e-9));
   CHECK(prediction_json(job, reports)["recording_frame_step"] == 4);
+  // Rows 2 s apart (the same rows at 2 frames a second) are not filled in.
+  {
+    std::ifstream in(dir / "sparse.txt");
+    std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    std::ofstream(dir / "slow.txt") << "# framerate: 2\n" << text.substr(text.find('\n') + 1);
+  }
+  o.observe = 4;
+  const PredictJob slow = make_predict_job((dir / "open.json").string(), (dir / "slow.txt").string(), {}, o, DesiredSpeed::Observed);
+  CHECK(slow.frame_step == 4);
+  CHECK(slow.interpolated_rows == 0);
   std::filesystem::remove_all(dir);
 }
 

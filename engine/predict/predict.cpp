@@ -150,6 +150,10 @@ std::string model_label(const Model& m) {
   return m.name.find(kind) == std::string::npos ? m.name + " (" + kind + ")" : m.name;
 }
 
+namespace {
+constexpr double kMaxFilledRows = 2e7;  // about 0.5 GB of TrackPoint
+}  // namespace
+
 PredictJob load_predict_job(const std::string& scenario_path, const std::string& trajectories_path,
                             const std::vector<std::string>& model_paths, const PredictOptions& o, DesiredSpeed ds) {
   PredictJob job;
@@ -163,7 +167,10 @@ PredictJob load_predict_job(const std::string& scenario_path, const std::string&
   job.recording = TrajectorySet::read(trajectories_path, 0, o.input);
   check_recording_scale(job.recording, job.scenario.geo, job.scenario.source);
   job.frame_step = job.recording.frame_step();
-  if (job.frame_step > 1) job.interpolated_rows = job.recording.fill_frames(job.frame_step);
+  // Filled where that stays small: a row at least every second, at most kMaxFilledRows in all.
+  const double filled = static_cast<double>(job.recording.points.size()) * static_cast<double>(job.frame_step);
+  if (job.frame_step > 1 && static_cast<double>(job.frame_step) <= job.recording.framerate && filled <= kMaxFilledRows)
+    job.interpolated_rows = job.recording.fill_frames(job.frame_step);
   job.options = o;
   job.desired_speed = ds;
   return job;

@@ -71,7 +71,9 @@ struct PredictJob {
   DesiredSpeed desired_speed = DesiredSpeed::Observed;
   // A recording with a row every few frames (ETH/UCY: every 10th) is compared at every frame,
   // whole seconds included: the frames between a person's consecutive rows that far apart are
-  // filled by linear interpolation when it is loaded (TrajectorySet::fill_frames).
+  // filled by linear interpolation when it is loaded (TrajectorySet::fill_frames), where the
+  // rows are at most a second apart and the filled recording has at most 20 million rows
+  // (otherwise interpolated_rows stays 0 and seconds without rows have no error).
   long frame_step = 1;          // the recording's most common step between a person's rows
   size_t interpolated_rows = 0; // rows so added
 };
