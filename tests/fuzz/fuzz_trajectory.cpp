@@ -1,5 +1,6 @@
 // Trajectory text (PeTrack): parse, then everything observation does with a recording: counts,
-// duration, frames, the observed state at a frame and free speeds.
+// duration, frames, the observed state at a frame, free speeds, and a sampled recording's frames
+// filled in.
 #include <cstddef>
 #include <cstdint>
 #include <string>
@@ -21,6 +22,16 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     const ObservedState st = observe_at(t, mid, 0.5, 1.0);
     if (st.ids.size() != st.x.size()) __builtin_trap();
     (void)free_speeds(t, 1.0, mid);
+    // A sampled recording's frames filled in (as predict does, where that stays small).
+    const long step = t.frame_step();
+    if (step < 1) __builtin_trap();
+    if (step > 1 && step <= 64 && t.points.size() * static_cast<size_t>(step) <= 1000000) {
+      TrajectorySet filled = t;
+      const size_t added = filled.fill_frames(step);
+      if (filled.points.size() != t.points.size() + added) __builtin_trap();
+      for (size_t i = 1; i < filled.points.size(); ++i)
+        if (filled.points[i].frame < filled.points[i - 1].frame) __builtin_trap();
+    }
   } catch (const Error&) {
   }
   return 0;
