@@ -675,9 +675,12 @@ int cmd_predict(const Args& a) {
   const std::vector<PredictionReport> reports = run_prediction(job);
   std::printf("%s: %zu people, %.1f s at %g fps; %ld windows of %g s; desired speed %s\n", a.trajectories.c_str(),
               t.person_count(), t.duration(), t.framerate, reports[0].windows, o.horizon, a.desired_speed.c_str());
-  if (job.frame_step > 1)
-    std::printf("the recording has a row every %ld frames: %zu positions between them interpolated linearly, to compare every frame\n",
-                job.frame_step, job.interpolated_rows);
+  if (job.interpolated_rows > 0)
+    std::printf("the recording has a row every %ld frames: compared with %zu positions between them interpolated linearly "
+                "(windows start on recorded rows)\n", job.frame_step, job.interpolated_rows);
+  else if (job.frame_step > 1)
+    std::printf("the recording has a row every %ld frames, not filled in (rows more than a second apart, or too many): "
+                "seconds without rows have no error\n", job.frame_step);
   std::printf("%-34s", "method");
   for (const auto& h : reports[0].horizons) std::printf("   ADE@%gs  FDE@%gs", h.horizon, h.horizon);
   std::printf("  gridV@%gs\n", reports[0].horizons.back().horizon);

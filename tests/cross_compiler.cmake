@@ -1,4 +1,4 @@
-# Builds the engine with another compiler (clang++) in its own tree and checks that it gives
+# Builds the simulation layers (state_hash) with another compiler (clang++) in its own tree and checks that it gives
 # the same drill state hash as the committed value, which the GCC build also asserts.
 # cmake -DSRC=<repo> -DBIN=<tree> -DCXX=<clang++> -DCC=<clang> -DSTEPS=<n> -DHASH=<hex> -P cross_compiler.cmake
 execute_process(COMMAND ${CMAKE_COMMAND} -S ${SRC} -B ${BIN} -DCMAKE_BUILD_TYPE=Release

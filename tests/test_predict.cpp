@@ -62,6 +62,7 @@ TEST_CASE("velocities and walking speeds from a recording sampled every third fr
 TEST_CASE("a prediction job on a recording sampled every 4th frame compares at every whole second", "[predict]") {
   // Rows every 0.4 s (framerate 10): 1 s after a window's start has no row of its own.
   const auto dir = std::filesystem::temp_directory_path() / "crowdmpm_sparse_predict";
+  std::filesystem::remove_all(dir);  // left by an earlier failed run
   std::filesystem::create_directories(dir);
   {
     std::ofstream rec(dir / "sparse.txt");
@@ -81,6 +82,9 @@ TEST_CASE("a prediction job on a recording sampled every 4th frame compares at e
   CHECK(job.interpolated_rows == 2 * 30 * 3);
   const std::vector<PredictionReport> reports = run_prediction(job);
   REQUIRE(reports.size() == 2);
+  // Windows start on recorded rows only (nothing read from after a start): 1.2 s and 7.2 s; the
+  // start 4.2 s has no row of its own and moves on to the next start that has one.
+  CHECK(reports[0].windows == 2);
   for (const PredictionReport& r : reports) {
     INFO(r.method);
     REQUIRE(r.horizons.size() == 3);
@@ -92,6 +96,7 @@ TEST_CASE("a prediction job on a recording sampled every 4th frame compares at e
   // Straight walkers at 1 m/s: constant velocity is exact at every second.
   for (const auto& h : reports[0].horizons) CHECK(h.fde == Approx(0).margin(1e-9));
   CHECK(prediction_json(job, reports)["recording_frame_step"] == 4);
+  CHECK(prediction_json(job, reports)["interpolated_rows"] == 2 * 30 * 3);
   // Rows 2 s apart (the same rows at 2 frames a second) are not filled in.
   {
     std::ifstream in(dir / "sparse.txt");

@@ -171,20 +171,32 @@ long TrajectorySet::frame_step() const {
 }
 
 size_t TrajectorySet::fill_frames(long max_gap) {
-  std::vector<TrackPoint> added;
-  for (const auto& track : tracks())
+  const std::vector<std::vector<size_t>> each = tracks();
+  auto filled_gap = [&](const std::vector<size_t>& track, size_t k) {
+    const long gap = points[track[k]].frame - points[track[k - 1]].frame;
+    return gap >= 2 && gap <= max_gap ? gap - 1 : 0L;
+  };
+  size_t added = 0;
+  for (const auto& track : each)
+    for (size_t k = 1; k < track.size(); ++k) added += static_cast<size_t>(filled_gap(track, k));
+  if (added == 0) return 0;
+  const size_t recorded = points.size();
+  points.reserve(recorded + added);  // appended in place: no second copy of the added rows
+  for (const auto& track : each)
     for (size_t k = 1; k < track.size(); ++k) {
-      const TrackPoint &a = points[track[k - 1]], &b = points[track[k]];
-      const long gap = b.frame - a.frame;
-      if (gap < 2 || gap > max_gap) continue;
+      if (filled_gap(track, k) == 0) continue;
+      const TrackPoint a = points[track[k - 1]], b = points[track[k]];
+      const double gap = static_cast<double>(b.frame - a.frame);
       for (long f = a.frame + 1; f < b.frame; ++f) {
-        const double w = static_cast<double>(f - a.frame) / static_cast<double>(gap);
-        added.push_back({a.id, f, a.x + w * (b.x - a.x), a.y + w * (b.y - a.y)});
+        const double w = static_cast<double>(f - a.frame) / gap;
+        points.push_back({a.id, f, a.x + w * (b.x - a.x), a.y + w * (b.y - a.y)});
       }
     }
-  points.insert(points.end(), added.begin(), added.end());
-  if (!added.empty()) sort_checked();
-  return added.size();
+  // Every (frame, id) is unique (only frames strictly between one person's rows are added), so an
+  // unstable sort gives the same order as sort_checked's, without its buffer.
+  std::sort(points.begin(), points.end(),
+            [](const TrackPoint& p, const TrackPoint& q) { return p.frame != q.frame ? p.frame < q.frame : p.id < q.id; });
+  return added;
 }
 
 std::pair<const TrackPoint*, const TrackPoint*> TrajectorySet::frame(long f) const {

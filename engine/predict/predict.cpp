@@ -36,7 +36,8 @@ double grid_velocity_error(const TrajectorySet& t, long f, const std::unordered_
 }  // namespace
 
 PredictionReport evaluate_predictor(const std::string& method, const TrajectorySet& t, const PredictOptions& o,
-                                    const Predictor& predict, const Grid* grid) {
+                                    const Predictor& predict, const Grid* grid, const TrajectorySet* truth) {
+  const TrajectorySet& seen = truth ? *truth : t;
   PredictionReport r;
   r.method = method;
   const int seconds = std::max(1, static_cast<int>(std::floor(o.horizon + 1e-9)));
@@ -67,7 +68,7 @@ PredictionReport evaluate_predictor(const std::string& method, const TrajectoryS
       const int sec = static_cast<int>(std::lround(times[k]));
       const bool whole = std::abs(times[k] - sec) < 0.5 / t.framerate && sec >= 1 && sec <= seconds;
       const size_t si = static_cast<size_t>(std::max(sec, 1) - 1);
-      auto [b, e] = t.frame(f0 + static_cast<long>(k) + 1);
+      auto [b, e] = seen.frame(f0 + static_cast<long>(k) + 1);
       for (auto p = b; p != e; ++p) {
         auto it = index.find(p->id);
         if (it == index.end()) continue;
@@ -84,7 +85,7 @@ PredictionReport evaluate_predictor(const std::string& method, const TrajectoryS
         }
       }
       if (grid && k > 0 && whole) {
-        double gv = grid_velocity_error(t, f0 + static_cast<long>(k), index, pred[k - 1], pred[k], *grid, o.grid_min_mass);
+        double gv = grid_velocity_error(seen, f0 + static_cast<long>(k), index, pred[k - 1], pred[k], *grid, o.grid_min_mass);
         if (std::isfinite(gv)) {
           gv_sum[si] += gv;
           ++gv_n[si];
@@ -151,7 +152,7 @@ std::string model_label(const Model& m) {
 }
 
 namespace {
-constexpr double kMaxFilledRows = 2e7;  // about 0.5 GB of TrackPoint
+constexpr double kMaxFilledRows = 1e7;  // 320 MB of TrackPoint
 }  // namespace
 
 PredictJob load_predict_job(const std::string& scenario_path, const std::string& trajectories_path,
@@ -168,9 +169,11 @@ PredictJob load_predict_job(const std::string& scenario_path, const std::string&
   check_recording_scale(job.recording, job.scenario.geo, job.scenario.source);
   job.frame_step = job.recording.frame_step();
   // Filled where that stays small: a row at least every second, at most kMaxFilledRows in all.
-  const double filled = static_cast<double>(job.recording.points.size()) * static_cast<double>(job.frame_step);
-  if (job.frame_step > 1 && static_cast<double>(job.frame_step) <= job.recording.framerate && filled <= kMaxFilledRows)
-    job.interpolated_rows = job.recording.fill_frames(job.frame_step);
+  const double rows = static_cast<double>(job.recording.points.size()) * static_cast<double>(job.frame_step);
+  if (job.frame_step > 1 && static_cast<double>(job.frame_step) <= job.recording.framerate && rows <= kMaxFilledRows) {
+    job.filled = job.recording;
+    job.interpolated_rows = job.filled.fill_frames(job.frame_step);
+  }
   job.options = o;
   job.desired_speed = ds;
   return job;
@@ -214,10 +217,12 @@ std::vector<PredictionReport> run_prediction(const PredictJob& job) {
   Grid grid;
   grid.init(job.scenario.geo, job.scenario.cell_size);
   const WindowOptions wo{job.options.threads, job.desired_speed};
+  const TrajectorySet* truth = job.interpolated_rows > 0 ? &job.filled : nullptr;
   std::vector<PredictionReport> reports = {
-      evaluate_predictor("constant velocity", job.recording, job.options, constant_velocity_predictor(), &grid)};
+      evaluate_predictor("constant velocity", job.recording, job.options, constant_velocity_predictor(), &grid, truth)};
   for (const auto& m : job.models)
-    reports.push_back(evaluate_predictor(model_label(m), job.recording, job.options, simulation_predictor(job.scenario, m, wo), &grid));
+    reports.push_back(
+        evaluate_predictor(model_label(m), job.recording, job.options, simulation_predictor(job.scenario, m, wo), &grid, truth));
   return reports;
 }
 

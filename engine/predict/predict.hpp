@@ -46,8 +46,12 @@ using Predictor = std::function<std::vector<std::vector<Vec2>>(const ObservedSta
 // With a grid, also the grid velocity error at every whole second: velocities by one-frame
 // differences of predicted and of recorded positions (agents seen in both), each transferred to
 // the grid (losses.hpp, grid_velocity_of) and compared where both have at least grid_min_mass.
+// Windows start, and the observed state is read, on t's own rows; the predictions are compared
+// with `truth` when given (t with the frames between its rows filled: PredictJob::filled), else
+// with t.
 PredictionReport evaluate_predictor(const std::string& method, const TrajectorySet& t, const PredictOptions& o,
-                                    const Predictor& predict, const Grid* grid = nullptr);
+                                    const Predictor& predict, const Grid* grid = nullptr,
+                                    const TrajectorySet* truth = nullptr);
 
 // Constant velocity: x(t) = x0 + v0 t.
 Predictor constant_velocity_predictor();
@@ -70,12 +74,14 @@ struct PredictJob {
   PredictOptions options;
   DesiredSpeed desired_speed = DesiredSpeed::Observed;
   // A recording with a row every few frames (ETH/UCY: every 10th) is compared at every frame,
-  // whole seconds included: the frames between a person's consecutive rows that far apart are
-  // filled by linear interpolation when it is loaded (TrajectorySet::fill_frames), where the
-  // rows are at most a second apart and the filled recording has at most 20 million rows
-  // (otherwise interpolated_rows stays 0 and seconds without rows have no error).
+  // whole seconds included: `filled` is the recording with the frames between a person's
+  // consecutive rows that far apart filled by linear interpolation (TrajectorySet::fill_frames),
+  // made when the rows are at most a second apart and it has at most 10 million rows (otherwise
+  // interpolated_rows stays 0, and seconds without rows have no error). Windows still start, and
+  // people are observed, on the recording's own rows only: nothing is read from after a start.
   long frame_step = 1;          // the recording's most common step between a person's rows
-  size_t interpolated_rows = 0; // rows so added
+  TrajectorySet filled;         // empty unless interpolated_rows > 0
+  size_t interpolated_rows = 0; // rows added in `filled`
 };
 // Loads the scenario, models and recording.
 PredictJob load_predict_job(const std::string& scenario_path, const std::string& trajectories_path,

@@ -26,11 +26,18 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     const long step = t.frame_step();
     if (step < 1) __builtin_trap();
     if (step > 1 && step <= 64 && t.points.size() * static_cast<size_t>(step) <= 1000000) {
-      TrajectorySet filled = t;
-      const size_t added = filled.fill_frames(step);
-      if (filled.points.size() != t.points.size() + added) __builtin_trap();
-      for (size_t i = 1; i < filled.points.size(); ++i)
-        if (filled.points[i].frame < filled.points[i - 1].frame) __builtin_trap();
+      try {
+        TrajectorySet filled = t;
+        const size_t added = filled.fill_frames(step);
+        if (filled.points.size() != t.points.size() + added) __builtin_trap();
+        for (size_t i = 1; i < filled.points.size(); ++i) {  // sorted by (frame, id), no duplicate
+          const TrackPoint &p = filled.points[i - 1], &q = filled.points[i];
+          if (!(p.frame < q.frame || (p.frame == q.frame && p.id < q.id))) __builtin_trap();
+        }
+        if (filled.fill_frames(step) != 0) __builtin_trap();  // every gap up to step is filled
+      } catch (const Error&) {
+        __builtin_trap();  // filling a recording that parsed must not fail
+      }
     }
   } catch (const Error&) {
   }

@@ -224,9 +224,10 @@ CMPM_API cmpm_Status cmpm_TrainModel(const char* request_json, const char* out_m
 /* Prediction (docs/learning.md), as `crowdmpm predict`: rolls a recording's observed states
  * forward with constant velocity, the scenario's model and every model given, and writes the
  * errors (ADE/FDE per second of horizon, grid velocity error; the prediction.json format) to
- * out_json_path. A recording with a row every few frames (ETH/UCY: every 10th) is compared at
- * every frame, its positions between a person's rows interpolated linearly
- * ("recording_frame_step", "interpolated_rows" in the report). request_json:
+ * out_json_path. A recording with a row every few frames (ETH/UCY: every 10th), at most a second
+ * apart, is compared at every frame with its positions between a person's rows interpolated
+ * linearly; windows start on recorded rows ("recording_frame_step", "interpolated_rows" in the
+ * report). request_json:
  *   {"scenario": PATH, "trajectories": PATH, "models": [PATH, ...], "observe": 2, "horizon": 4,
  *    "stride": (horizon), "windows": 0 (all), "threads": 1, "desired_speed": "observed" | "scenario" | "free",
  *    "input": {"max_bytes": 268435456, "allow_outside_paths": false}}
