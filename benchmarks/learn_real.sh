@@ -61,15 +61,7 @@ run() {
   dir="$build/learn/$(basename "$traj" .txt)"
   "$cli" predict --scenario "scenarios/$scen.json" --trajectories "$traj" --observe 4 --horizon 4 --threads 2 --desired-speed free \
       --model "$models/crowd.json" --model "$models/fluid.json" --model "$models/social_force.json" --out "$dir" > /dev/null
-  /usr/bin/python3 - "$dir/prediction.json" "$traj" "$scen" >> "$out" <<'PY'
-import json, sys
-j = json.load(open(sys.argv[1]))
-f = lambda v: "%.3f" % v if v is not None else "-"
-for m in j["methods"]:
-    h = {e["horizon_s"]: e for e in m["horizons"]}
-    print("| %s | %s | %s | %d | %s | %s | %s | %s | %s |" % (sys.argv[2].split("/")[-1], sys.argv[3], m["method"], m["windows"],
-          f(h[1]["ade_m"]), f(h[1]["fde_m"]), f(h[4]["ade_m"]), f(h[4]["fde_m"]), f(h[4]["grid_velocity_rms_m_s"])))
-PY
+  /usr/bin/python3 benchmarks/prediction_rows.py "$dir/prediction.json" "$(basename "$traj")" "$scen" >> "$out"
 }
 run "$corr/uo-145-180-180.txt" corridor
 run "$corr/uo-180-180-070.txt" corridor

@@ -35,15 +35,7 @@ for run in students001 crowds_zara01; do
     dir="$work/${run}_$speed"
     "$cli" predict --scenario benchmarks/transfer/open_square.json --trajectories "$data/$run.txt" --observe 3.2 --horizon 4 \
         --threads 2 --desired-speed "$speed" --model scenarios/models/learned_juelich.json --out "$dir" > "$dir.log"
-    /usr/bin/python3 - "$dir/prediction.json" "$run" "$speed" >> "$out" <<'PY'
-import json, sys
-j = json.load(open(sys.argv[1]))
-f = lambda v: "%.3f" % v if v is not None else "-"
-for m in j["methods"]:
-    h = {e["horizon_s"]: e for e in m["horizons"]}
-    print("| %s | %s | %s | %d | %s | %s | %s | %s | %s |" % (sys.argv[2], sys.argv[3], m["method"], m["windows"],
-          f(h[1]["ade_m"]), f(h[1]["fde_m"]), f(h[4]["ade_m"]), f(h[4]["fde_m"]), f(h[4]["grid_velocity_rms_m_s"])))
-PY
+    /usr/bin/python3 benchmarks/prediction_rows.py "$dir/prediction.json" "$run" "$speed" >> "$out"
   done
 done
 cat "$out"

@@ -113,11 +113,14 @@ TrajectorySet TrajectorySet::parse(const std::string& text, const std::string& s
   return t;
 }
 
+namespace {
+// The order of a recording's rows: by frame, then by id.
+bool frame_then_id(const TrackPoint& a, const TrackPoint& b) { return a.frame != b.frame ? a.frame < b.frame : a.id < b.id; }
+}  // namespace
+
 void TrajectorySet::sort_checked() {
   if (points.empty()) throw Error(source + ": no trajectory rows");
-  std::stable_sort(points.begin(), points.end(), [](const TrackPoint& a, const TrackPoint& b) {
-    return a.frame != b.frame ? a.frame < b.frame : a.id < b.id;
-  });
+  std::stable_sort(points.begin(), points.end(), frame_then_id);
   for (size_t i = 1; i < points.size(); ++i)
     if (points[i].frame == points[i - 1].frame && points[i].id == points[i - 1].id)
       throw Error(source + ": person " + std::to_string(points[i].id) + " appears twice in frame " +
@@ -194,8 +197,7 @@ size_t TrajectorySet::fill_frames(long max_gap) {
     }
   // Every (frame, id) is unique (only frames strictly between one person's rows are added), so an
   // unstable sort gives the same order as sort_checked's, without its buffer.
-  std::sort(points.begin(), points.end(),
-            [](const TrackPoint& p, const TrackPoint& q) { return p.frame != q.frame ? p.frame < q.frame : p.id < q.id; });
+  std::sort(points.begin(), points.end(), frame_then_id);
   return added;
 }
 
