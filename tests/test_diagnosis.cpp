@@ -194,6 +194,32 @@ TEST_CASE("diagnosis of a recording with nothing concealed finds nothing", "[dia
   CHECK(rep.at("verdict").at("type") == "none");
   CHECK(rep.at("terms").empty());
   CHECK(rep.at("final_fits").is_null());  // nothing accepted: the baseline as fitted
+  // The recorded tracks were smoothed under the noise they show: 0.03 m, as written.
+  const json& sm = rep.at("recording").at("smoother");
+  CHECK(sm.at("method") == "rts");
+  CHECK(sm.at("position_noise_m").get<double>() == Approx(0.03).margin(0.006));
+  CHECK(sm.at("acceleration_noise_m2_s3").get<double>() > 0);
+  // ... moved by about the noise, person by person and frame by frame as read; "none" keeps them as read.
+  json as_read = request_for(c);
+  as_read["options"]["smoother"] = "none";
+  const DiagnoseJob raw = parse_diagnose_job(as_read);
+  CHECK_FALSE(raw.trajectories_smoothed);
+  const TrajectorySet read = TrajectorySet::read(c.observed);
+  REQUIRE(raw.recording.points.size() == read.points.size());
+  REQUIRE(job.recording.points.size() == read.points.size());
+  double moved2 = 0, unchanged2 = 0;
+  for (size_t k = 0; k < read.points.size(); ++k) {
+    const TrackPoint &a = read.points[k], &s = job.recording.points[k], &n = raw.recording.points[k];
+    REQUIRE(s.id == a.id);
+    REQUIRE(s.frame == a.frame);
+    moved2 += std::pow(s.x - a.x, 2) + std::pow(s.y - a.y, 2);
+    unchanged2 += std::pow(n.x - a.x, 2) + std::pow(n.y - a.y, 2);
+  }
+  const double moved = std::sqrt(moved2 / (2.0 * static_cast<double>(read.points.size())));
+  std::printf("  control: smoothing moved the tracked positions by %.4f m RMS per axis\n", moved);
+  CHECK(moved > 0.015);
+  CHECK(moved < 0.04);
+  CHECK(unchanged2 == 0);
   // By default the baseline got Weidmann's law, and the speeds were read under it: higher than
   // walked (the law slows people at any density; the social-force crowd slows less), the fitted
   // v0_scale bringing them back down.
@@ -450,6 +476,9 @@ TEST_CASE("diagnosis requests name what is wrong", "[diagnosis]") {
     CHECK(std::find(p.begin(), p.end(), "density_speed_gamma") != p.end());
     CHECK(std::find(p.begin(), p.end(), "density_speed_max") != p.end());
   }
+  fails_with({{"scenario", belief}, {"trajectories", rec}, {"options", {{"smoother", "kalman"}}}}, "options.smoother");
+  fails_with({{"scenario", belief}, {"video", {{"path", rec}, {"scale", 0.01}}}, {"options", {{"smoother", "none"}}}},
+             "options.smoother: applies to \"trajectories\"");
   fails_with({{"scenario", belief}, {"trajectories", rec}, {"options", {{"baseline_optimizer", "sgd"}}}}, "baseline_optimizer");
   fails_with({{"scenario", belief}, {"trajectories", rec}, {"options", {{"baseline_restarts", 2.5}}}}, "baseline_restarts");
   fails_with({{"scenario", belief}, {"trajectories", rec}, {"options", {{"baseline_restarts", 21}}}}, "baseline_restarts");

@@ -706,12 +706,28 @@ DiagnoseJob parse_diagnose_job(const json& request, const std::string& base_dir)
   job.scenario_path = resolve_path(base_dir, r.string("scenario", std::nullopt));
   if (r.has("trajectories") == r.has("video")) r.fail("a diagnosis request needs \"trajectories\" or \"video\" (one of them)");
   job.scenario = ScenarioDef::load(job.scenario_path, input);
+  // How the recording's tracks are smoothed: a video's detected tracks by the video's own
+  // "smoother"; recorded trajectories by the options' (default rts), checked before the recording is read.
+  std::string smoother = "rts";
+  if (auto op = r.get("options")) {
+    op->require_object();
+    if (r.has("video") && op->has("smoother"))
+      op->fail_at("smoother", "applies to \"trajectories\"; a video's tracks are smoothed by its own \"smoother\" (in \"video\")");
+    smoother = op->one_of("smoother", {"rts", "none"}, smoother);
+  }
   if (r.has("trajectories")) {
     job.trajectories_path = resolve_path(base_dir, r.string("trajectories", std::nullopt));
     job.recording = TrajectorySet::read(job.trajectories_path, 0, input);
     check_recording_scale(job.recording, job.scenario.geo, job.scenario.source);
   } else {
     read_video_recording(r.at("video"), base_dir, input, job);
+  }
+  if (!job.from_video && smoother == "rts" && !job.recording.points.empty()) {
+    job.track_noise = estimate_track_noise(job.recording);
+    if (job.track_noise.position > 0) {
+      job.recording = smoothed_tracks(job.recording, job.track_noise);
+      job.trajectories_smoothed = true;
+    }
   }
   job.model = r.has("model") ? Model::load(resolve_path(base_dir, r.string("model", std::nullopt)), input)
                              : job.scenario.model_or_default();
@@ -722,7 +738,7 @@ DiagnoseJob parse_diagnose_job(const json& request, const std::string& base_dir)
     op->allow_only({"train_share", "window", "stride", "horizon", "residual_stride", "cell", "time_bin", "z_threshold", "source_margin",
                     "null_replicates", "alpha", "max_terms", "min_gain", "min_gain_venue", "min_gain_z", "candidates", "params",
                     "iterations", "learning_rate", "baseline_restarts", "final_restarts", "threads", "seed", "desired_speed", "density_law", "baseline_optimizer",
-                    "optimizer"});
+                    "optimizer", "smoother"});
     o.train_share = op->in_range("train_share", 0.2, 0.9, o.train_share);
     o.window = op->in_range("window", 0.2, 30, o.window);
     o.stride = op->in_range("stride", 0.05, 30, o.stride);
@@ -815,7 +831,10 @@ DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& pr
   res.heldout_start = static_cast<double>(sp.heldout_from) / t.framerate;
   res.heldout_end = static_cast<double>(sp.heldout_to) / t.framerate;
   res.tracking_noise = tracking_noise(t);
-  say("tracking noise " + num(res.tracking_noise, 3) + " m; " + std::to_string(res.train_windows) + " fitting, " +
+  if (job.trajectories_smoothed)
+    say("tracks smoothed under the noise they show: position " + num(job.track_noise.position, 4) + " m, acceleration " +
+        num(job.track_noise.acceleration, 3) + " m^2/s^3");
+  say("tracking noise " + num(res.tracking_noise, 3) + " m" + (job.trajectories_smoothed ? " left in the smoothed tracks" : "") + "; " + std::to_string(res.train_windows) + " fitting, " +
       std::to_string(res.heldout_windows) + " held-out windows");
 
   // The venue as the user believes it; with "desired_speed": "recording", its crowd walking at
@@ -1341,7 +1360,13 @@ json diagnosis_json(const DiagnoseJob& job, const DiagnosisResult& r) {
                                                                       {"innovations", job.track_noise.samples}}
                                                                : json("none")},
                                               {"tracks_count", job.recording.person_count()}}
-                                       : json{{"trajectories", job.trajectories_path}, {"people", job.recording.person_count()}}}};
+                                       : json{{"trajectories", job.trajectories_path},
+                                              {"people", job.recording.person_count()},
+                                              {"smoother", job.trajectories_smoothed ? json{{"method", "rts"},
+                                                                                            {"position_noise_m", job.track_noise.position},
+                                                                                            {"acceleration_noise_m2_s3", job.track_noise.acceleration},
+                                                                                            {"innovations", job.track_noise.samples}}
+                                                                                      : json("none")}}}};
 }
 
 void write_diagnosis(const DiagnoseJob& job, const DiagnosisResult& res, const std::string& out_dir) {

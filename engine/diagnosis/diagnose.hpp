@@ -202,7 +202,11 @@ struct DiagnoseJob {
   VideoSource video;          // what a video request gave
   bool detect = true;         // its people detected and followed (detected_tracks), or flow's tracks (flow_tracks)
   DetectOptions detection;
-  TrackNoise track_noise;     // the noise levels detected tracks were smoothed under (detection.smoother)
+  // Recorded trajectories are smoothed like a video's detected tracks (options "smoother": "rts",
+  // the default, or "none"): each track replaced by the Rauch-Tung-Striebel smoother's estimate
+  // under the noise levels the recording shows itself (engine/observe/track_smoother.hpp).
+  bool trajectories_smoothed = false;
+  TrackNoise track_noise;     // the noise levels the tracks were smoothed under (detected tracks, or smoothed trajectories)
   FlowTrackOptions tracks;
   ScenarioDef scenario;
   Model model;                // with Weidmann's law added where density_law_added

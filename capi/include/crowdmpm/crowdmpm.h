@@ -283,7 +283,10 @@ CMPM_API cmpm_Status cmpm_PredictRecording(const char* request_json, const char*
  *                "density_law": true (a crowd material without a speed-density law gets
  *                Weidmann's in the baseline, refitted with it; false: the material as given,
  *                2-5 times faster),
- *                "baseline_optimizer": "adam", "optimizer": "adam"},
+ *                "baseline_optimizer": "adam", "optimizer": "adam",
+ *                "smoother": "rts" (recorded trajectories smoothed under the noise levels they
+ *                show, report.json "recording.smoother"; "none": read as they are; not with a
+ *                "video", whose own "smoother" applies)},
  *    "input": {"max_bytes": 268435456, "allow_outside_paths": false}}
  * Blocks for seconds to minutes; the result does not depend on "threads".
  * CMPM_ERROR_INVALID_INPUT as for cmpm_TrainModel, and for recordings too short to split into
