@@ -722,12 +722,9 @@ DiagnoseJob parse_diagnose_job(const json& request, const std::string& base_dir)
   } else {
     read_video_recording(r.at("video"), base_dir, input, job);
   }
-  if (!job.from_video && smoother == "rts" && !job.recording.points.empty()) {
-    job.track_noise = estimate_track_noise(job.recording);
-    if (job.track_noise.position > 0) {
-      job.recording = smoothed_tracks(job.recording, job.track_noise);
-      job.trajectories_smoothed = true;
-    }
+  if (!job.from_video && smoother == "rts") {
+    job.track_noise = smooth_under_own_noise(job.recording);
+    job.trajectories_smoothed = job.track_noise.position > 0;
   }
   job.model = r.has("model") ? Model::load(resolve_path(base_dir, r.string("model", std::nullopt)), input)
                              : job.scenario.model_or_default();
@@ -1262,6 +1259,13 @@ std::string error_unit(const DiagnoseOptions& o) {
 }  // namespace
 
 json diagnosis_json(const DiagnoseJob& job, const DiagnosisResult& r) {
+  // The noise levels the recording's tracks were smoothed under (a video's detected tracks, or trajectories).
+  const bool smoothed = job.from_video ? job.detect && job.detection.smoother : job.trajectories_smoothed;
+  const json smoother = smoothed ? json{{"method", "rts"},
+                                        {"position_noise_m", job.track_noise.position},
+                                        {"acceleration_noise_m2_s3", job.track_noise.acceleration},
+                                        {"innovations", job.track_noise.samples}}
+                                 : json("none");
   json verdict;
   if (!r.terms.empty()) {
     verdict = {{"type", report_type(r.terms[0].law)}, {"params", report_params(r.terms[0])}};
@@ -1353,20 +1357,11 @@ json diagnosis_json(const DiagnoseJob& job, const DiagnosisResult& r) {
                                               {"tracks", job.detect ? "people detected in its frames and followed by its optical flow (video_tracks.txt)"
                                                                     : "points carried by its flow fields (video_tracks.txt)"},
                                               {"tracks_method", job.detect ? "detect" : "flow"},
-                                              {"smoother", job.detect && job.detection.smoother
-                                                               ? json{{"method", "rts"},
-                                                                      {"position_noise_m", job.track_noise.position},
-                                                                      {"acceleration_noise_m2_s3", job.track_noise.acceleration},
-                                                                      {"innovations", job.track_noise.samples}}
-                                                               : json("none")},
+                                              {"smoother", smoother},
                                               {"tracks_count", job.recording.person_count()}}
                                        : json{{"trajectories", job.trajectories_path},
                                               {"people", job.recording.person_count()},
-                                              {"smoother", job.trajectories_smoothed ? json{{"method", "rts"},
-                                                                                            {"position_noise_m", job.track_noise.position},
-                                                                                            {"acceleration_noise_m2_s3", job.track_noise.acceleration},
-                                                                                            {"innovations", job.track_noise.samples}}
-                                                                                      : json("none")}}}};
+                                              {"smoother", smoother}}}};
 }
 
 void write_diagnosis(const DiagnoseJob& job, const DiagnosisResult& res, const std::string& out_dir) {

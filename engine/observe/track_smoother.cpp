@@ -185,4 +185,10 @@ TrajectorySet smoothed_tracks(const TrajectorySet& t, const TrackNoise& noise) {
   return out;
 }
 
+TrackNoise smooth_under_own_noise(TrajectorySet& t) {
+  const TrackNoise levels = estimate_track_noise(t);
+  if (levels.position > 0) t = smoothed_tracks(t, levels);
+  return levels;
+}
+
 }  // namespace crowdmpm

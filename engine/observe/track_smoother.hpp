@@ -33,4 +33,8 @@ TrackNoise estimate_track_noise(const TrajectorySet& t);
 // that is negative or not finite is an Error naming it.
 TrajectorySet smoothed_tracks(const TrajectorySet& t, const TrackNoise& noise);
 
+// The recording smoothed in place under the noise levels it shows (estimate_track_noise, then
+// smoothed_tracks), which are returned; with position 0 (too few frames, or clean) it is left as it is.
+TrackNoise smooth_under_own_noise(TrajectorySet& t);
+
 }  // namespace crowdmpm

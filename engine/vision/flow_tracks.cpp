@@ -375,8 +375,7 @@ TrajectorySet detected_tracks(const VideoSource& src, const Geometry& venue, con
   if (flows == 0) throw Error(src.path + ": fewer than two frames in the range; flow needs two");
   out.framerate = reader.info().fps;
   if (o.smoother && !out.points.empty()) {
-    const TrackNoise levels = estimate_track_noise(out);
-    out = smoothed_tracks(out, levels);
+    const TrackNoise levels = smooth_under_own_noise(out);
     if (noise) *noise = levels;
   }
   smooth_tracks(out, std::lround(o.smooth * info.fps / 2));
