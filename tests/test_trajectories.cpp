@@ -296,6 +296,47 @@ TEST_CASE("tracks are smoothed under the noise levels they show: jitter is read 
   }
 }
 
+TEST_CASE("the smoother's steady-state error is what smoothed tracks show: positions and velocities over a lag", "[trajectories]") {
+  const TrackNoise levels{0.05, 0.1, 0};
+  const Walkers w = walkers(levels.acceleration, levels.position, 9);
+  const TrajectorySet s = smoothed_tracks(w.seen, levels);
+  // Errors per axis away from the tracks' ends (frames 40-359 of 400), and of the velocity taken
+  // over 5 frames (0.5 s), as a diagnosis observes a person's velocity.
+  const long lag = 5;
+  std::map<std::pair<long, long>, Vec2> err;  // (id, frame) -> smoothed minus true position
+  for (size_t i = 0; i < s.points.size(); ++i)
+    err[{s.points[i].id, s.points[i].frame}] = Vec2(s.points[i].x - w.truth.points[i].x, s.points[i].y - w.truth.points[i].y);
+  double p2 = 0, v2 = 0;
+  long np = 0, nv = 0;
+  for (const auto& [key, e] : err) {
+    if (key.second < 40 || key.second >= 360) continue;
+    p2 += e.squaredNorm();
+    np += 2;
+    const Vec2& before = err.at({key.first, key.second - lag});
+    v2 += ((e - before) * (s.framerate / static_cast<double>(lag))).squaredNorm();
+    nv += 2;
+  }
+  const double pos = std::sqrt(p2 / static_cast<double>(np)), vel = std::sqrt(v2 / static_cast<double>(nv));
+  const SmoothedError e = smoothed_error(levels, 0.1, lag);
+  const double white = std::sqrt(2.0) * e.position / 0.5;  // the same errors taken as independent
+  std::printf("smoothed error: position %.4f m (steady state %.4f), velocity over 0.5 s %.4f m/s (steady state %.4f; %.4f if independent)\n",
+              pos, e.position, vel, e.velocity, white);
+  CHECK(e.position == Approx(pos).epsilon(0.08));
+  CHECK(e.velocity == Approx(vel).epsilon(0.1));
+  CHECK(e.position < 0.6 * levels.position);
+  CHECK(e.velocity < 0.95 * white);
+  // Over one frame the smoothed errors are strongly correlated: the velocity errs far less than
+  // independent errors would make it, and more than over 5 frames.
+  const SmoothedError one = smoothed_error(levels, 0.1, 1);
+  std::printf("over one frame: velocity %.4f m/s (%.4f if independent)\n", one.velocity, std::sqrt(2.0) * one.position / 0.1);
+  CHECK(one.velocity < 0.5 * std::sqrt(2.0) * one.position / 0.1);
+  CHECK(one.velocity > e.velocity);
+  CHECK(smoothed_error(TrackNoise{0, 0.1, 0}, 0.1, lag).position == 0);
+  CHECK_THROWS_WITH(smoothed_error(levels, 0, lag), Catch::Contains("time between frames"));
+  CHECK_THROWS_WITH(smoothed_error(levels, 0.1, 0), Catch::Contains("lag"));
+  CHECK_THROWS_WITH(smoothed_error(TrackNoise{0.05, -1, 0}, 0.1, lag), Catch::Contains("acceleration -1"));
+}
+
 TEST_CASE("clean tracks are left as they are by the smoother and too few frames give no noise levels", "[trajectories]") {
   const Walkers w = walkers(0.1, 0, 8);
   const TrackNoise n = estimate_track_noise(w.truth);

@@ -568,7 +568,7 @@ struct Localisation {
   Vec2 global_mean = Vec2::Zero();
 };
 Localisation localise(const ScenarioDef& s, const Model& m, const TrajectorySet& t, const Split& sp,
-                      const DiagnoseOptions& d, double noise, int round, bool with_null) {
+                      const DiagnoseOptions& d, const TrackError& noise, int round, bool with_null) {
   Localisation l;
   l.set = recorded_residuals(s, m, t, sp.train_from, sp.train_to, d.residual);
   l.map = bin_residuals(l.set, s.geo, d.residual);
@@ -811,6 +811,18 @@ DiagnoseJob parse_diagnose_job(const json& request, const std::string& base_dir)
 // gate), the social-force suite's cases 0.89-1.9 (benchmarks/results/diagnosis.md).
 constexpr double kOwnPaceShare = 0.5;
 
+namespace {
+// The least position noise (m, white) the null adds: a recording read as clean (real tracks
+// read 1e-6 to 0.002 m) still differs from the model by more than rounding.
+constexpr double kMinNullNoise = 0.005;
+
+// Whether the recording's tracks were smoothed (a video's detected tracks by the video's
+// "smoother", trajectories by the options'), under job.track_noise.
+bool tracks_smoothed(const DiagnoseJob& job) {
+  return job.from_video ? job.detect && job.detection.smoother : job.trajectories_smoothed;
+}
+}  // namespace
+
 DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& progress) {
   DiagnoseOptions d = job.options;
   if (d.recording_speed) d.residual.desired_speed = DesiredSpeed::Scenario;  // the groups' speed, set below
@@ -828,10 +840,24 @@ DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& pr
   res.heldout_start = static_cast<double>(sp.heldout_from) / t.framerate;
   res.heldout_end = static_cast<double>(sp.heldout_to) / t.framerate;
   res.tracking_noise = tracking_noise(t);
+  // The errors the null adds to the model's own motion (step 4): those the recording's tracks
+  // carry, at least kMinNullNoise of white noise. Smoothed tracks carry the smoother's
+  // steady-state error, correlated from frame to frame, so that a velocity over the window errs
+  // far less than two independent position errors would make it (the second differences of
+  // smoothed tracks see next to none of it); raw tracks the white noise their second
+  // differences show.
+  const TrackError least = white_track_error(kMinNullNoise, d.residual.velocity_window, t.framerate);
+  if (tracks_smoothed(job) && job.track_noise.position > 0) {
+    const SmoothedError e = smoothed_error(job.track_noise, 1 / t.framerate, velocity_lag_frames(d.residual.velocity_window, t.framerate));
+    res.null_error = {std::max(e.position, least.position), std::max(e.velocity, least.velocity)};
+  } else {
+    res.null_error = white_track_error(std::max(res.tracking_noise, kMinNullNoise), d.residual.velocity_window, t.framerate);
+  }
   if (job.trajectories_smoothed)
     say("tracks smoothed under the noise they show: position " + num(job.track_noise.position, 4) + " m, acceleration " +
         num(job.track_noise.acceleration, 3) + " m^2/s^3");
-  say("tracking noise " + num(res.tracking_noise, 3) + " m" + (job.trajectories_smoothed ? " left in the smoothed tracks" : "") + "; " + std::to_string(res.train_windows) + " fitting, " +
+  say("tracking noise " + num(res.tracking_noise, 3) + " m" + (job.trajectories_smoothed ? " left in the smoothed tracks" : "") + "; the null's error " +
+      num(res.null_error.position, 4) + " m, " + num(res.null_error.velocity, 4) + " m/s; " + std::to_string(res.train_windows) + " fitting, " +
       std::to_string(res.heldout_windows) + " held-out windows");
 
   // The venue as the user believes it; with "desired_speed": "recording", its crowd walking at
@@ -943,7 +969,7 @@ DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& pr
   size_t after_terms = 0;  // accepted terms residual_after was made with (0: none made)
   for (int round = 0; round < std::max(1, d.max_terms); ++round) {
     const ScenarioDef current = with_terms(belief, now.terms);
-    Localisation loc = localise(current, now.model, t, sp, d, std::max(res.tracking_noise, 0.005), round, true);
+    Localisation loc = localise(current, now.model, t, sp, d, res.null_error, round, true);
     if (round == 0) res.residual_before = loc.map;
     else {
       res.residual_after = loc.map;
@@ -1138,7 +1164,7 @@ DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& pr
   res.model = now.model;
   if (!res.terms.empty() && after_terms != res.terms.size()) {
     const ScenarioDef current = with_terms(belief, now.terms);
-    res.residual_after = localise(current, now.model, t, sp, d, res.tracking_noise, d.max_terms, false).map;
+    res.residual_after = localise(current, now.model, t, sp, d, res.null_error, d.max_terms, false).map;
   } else if (res.terms.empty()) {
     res.residual_after = res.residual_before;
   }
@@ -1260,8 +1286,7 @@ std::string error_unit(const DiagnoseOptions& o) {
 
 json diagnosis_json(const DiagnoseJob& job, const DiagnosisResult& r) {
   // The noise levels the recording's tracks were smoothed under (a video's detected tracks, or trajectories).
-  const bool smoothed = job.from_video ? job.detect && job.detection.smoother : job.trajectories_smoothed;
-  const json smoother = smoothed ? json{{"method", "rts"},
+  const json smoother = tracks_smoothed(job) ? json{{"method", "rts"},
                                         {"position_noise_m", job.track_noise.position},
                                         {"acceleration_noise_m2_s3", job.track_noise.acceleration},
                                         {"innovations", job.track_noise.samples}}
@@ -1343,6 +1368,7 @@ json diagnosis_json(const DiagnoseJob& job, const DiagnosisResult& r) {
           {"scenario_terms", scenario_terms},
           {"score_definition", "n ln(MSE) + k ln(n) over the people passing the hypothesis' region (everyone for a venue-wide term), n the disjoint windows their held-out time spans (the effective sample size), k the term's fitted parameters, minus the same of the baseline (lower is better)"},
           {"tracking_noise_m", r.tracking_noise},
+          {"null_error", {{"position_m", r.null_error.position}, {"velocity_m_s", r.null_error.velocity}}},
           {"desired_speed", speed},
           {"density_law", job.density_law_added ? "Weidmann's speed-density law added to the model's material (gamma " + format_number(kWeidmannGamma) +
                                                     ", max " + format_number(kWeidmannMaxDensity) +

@@ -159,7 +159,8 @@ struct DiagnosisResult {
   double region_before = 0, region_after = 0;            // over the people passing the first accepted term's region (global if none)
   Reach region;                                          // where the first accepted term acts (everyone if none)
   ResidualMap residual_before, residual_after;           // on the training part
-  double tracking_noise = 0;          // m, estimated
+  double tracking_noise = 0;          // m, estimated from second differences of the tracks (as smoothed)
+  TrackError null_error;              // the errors the null adds (step 4 of docs/diagnosis.md)
   SpeedDistribution free_speed;       // of the training part's people, where recording_speed
   bool recording_speed = true;        // the desired-speed reading used (chosen where auto_speed)
   DesiredSpeed desired_speed = DesiredSpeed::Scenario;  // the windows' reading (Scenario under recording_speed)

@@ -100,12 +100,11 @@ ResidualSet recorded_residuals(const ScenarioDef& scenario, const Model& model, 
 }
 
 ResidualSet null_residuals(const ScenarioDef& scenario, const Model& model, const TrajectorySet& t, long from, long to,
-                           const ResidualOptions& o, double noise, uint64_t seed) {
+                           const ResidualOptions& o, const TrackError& error, uint64_t seed) {
   const Rollouts p = plan(t, from, to, o);
   const Predictor predict = simulation_predictor(scenario, model, WindowOptions{1, o.desired_speed});
   const double h = static_cast<double>(p.end) / t.framerate, hm = static_cast<double>(p.mid) / t.framerate;
-  // Noise on a position makes noise sqrt(2) noise / window on the velocity taken over it.
-  const double v_noise = std::sqrt(2.0) * noise / std::max(o.velocity_window, 1 / t.framerate);
+  const double noise = error.position, v_noise = error.velocity;
   const auto history = speed_history_for(t, o.speed_window, o.desired_speed);
   return over_rollouts(p, o.threads, [&](size_t i) {
     ResidualSet out;
@@ -137,6 +136,11 @@ ResidualSet null_residuals(const ScenarioDef& scenario, const Model& model, cons
     out.rollouts = 1;
     return out;
   });
+}
+
+TrackError white_track_error(double noise, double velocity_window, double framerate) {
+  const double span = static_cast<double>(velocity_lag_frames(velocity_window, framerate)) / framerate;
+  return {noise, std::sqrt(2.0) * noise / span};
 }
 
 double tracking_noise(const TrajectorySet& t) {

@@ -57,11 +57,20 @@ struct ResidualSet {
 // `from` and `to` (rollouts end by `to`); samples near the scenario's sources are left out.
 ResidualSet recorded_residuals(const ScenarioDef& scenario, const Model& model, const TrajectorySet& t, long from,
                                long to, const ResidualOptions& o);
+// The error a recording's tracks carry, each axis: of a position (m) and of a velocity taken
+// over ResidualOptions::velocity_window (m/s).
+struct TrackError {
+  double position = 0, velocity = 0;
+};
+// White position noise of sd `noise` (m) on raw tracks: the velocity over the window's frames
+// errs by sqrt(2) noise / their time.
+TrackError white_track_error(double noise, double velocity_window, double framerate);
+
 // The same rollouts with the model as the truth: the "recorded" start is the recorded state
-// with Gaussian noise of sd `noise` (m) on positions (and the velocities that noise implies),
-// the "recorded" end the model's motion from the recorded state plus the same noise.
+// with independent Gaussian errors of the sds `error` gives on positions and velocities, the
+// "recorded" end the model's motion from the recorded state plus the position error.
 ResidualSet null_residuals(const ScenarioDef& scenario, const Model& model, const TrajectorySet& t, long from, long to,
-                           const ResidualOptions& o, double noise, uint64_t seed);
+                           const ResidualOptions& o, const TrackError& error, uint64_t seed);
 
 // Tracking noise of a recording (m): from second differences of positions at the frame rate,
 // sd = sqrt(median(|d2|^2) / (6 ln 2)) per component pair, the motion's own acceleration being

@@ -75,12 +75,16 @@ void check_recording_scale(const TrajectorySet& t, const Geometry& geo, const st
                 " m): " + hint("a recording in other units than its header states (\"# unit: cm\" or mm; metres when none), or each person tracked twice"));
 }
 
+long velocity_lag_frames(double velocity_window, double framerate) {
+  return std::max(1L, std::lround(velocity_window * framerate));
+}
+
 ObservedState observe_at(const TrajectorySet& t, long frame, double velocity_window, double speed_window,
                          std::shared_ptr<const SpeedHistory> history) {
   ObservedState s;
   s.frame = frame;
   s.history = std::move(history);
-  const long back = std::max(1L, std::lround(velocity_window * t.framerate));
+  const long back = velocity_lag_frames(velocity_window, t.framerate);
   const long back_s = std::max(back, std::lround(speed_window * t.framerate));
   // Each person's latest recorded position at or before `target` frames, searching no further
   // back than `limit` (recordings sampled every few frames, such as ETH/UCY's every 10th,

@@ -74,6 +74,9 @@ struct ObservedState {
   std::shared_ptr<const SpeedHistory> history;
 };
 
+// The frames observe_at takes a velocity over: the window's at the frame rate, at least one.
+long velocity_lag_frames(double velocity_window, double framerate);
+
 ObservedState observe_at(const TrajectorySet& t, long frame, double velocity_window, double speed_window = 1,
                          std::shared_ptr<const SpeedHistory> history = nullptr);
 

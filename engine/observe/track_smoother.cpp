@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include <Eigen/Dense>
+
 #include "engine/core/error.hpp"
 #include "engine/core/json_reader.hpp"
 
@@ -135,13 +137,59 @@ TrackNoise estimate_track_noise(const TrajectorySet& t) {
   return out;
 }
 
-TrajectorySet smoothed_tracks(const TrajectorySet& t, const TrackNoise& noise) {
+namespace {
+void check_levels(const TrackNoise& noise) {
   if (!(std::isfinite(noise.position) && noise.position >= 0 && std::isfinite(noise.acceleration) && noise.acceleration >= 0))
     throw Error("track smoother: noise levels must be finite and >= 0, got position " + format_number(noise.position) +
                 " m, acceleration " + format_number(noise.acceleration) + " m^2/s^3");
+}
+constexpr double kMinAcceleration = 1e-9;  // m^2/s^3: the smoother's least acceleration density
+}  // namespace
+
+SmoothedError smoothed_error(const TrackNoise& noise, double dt, long lag) {
+  check_levels(noise);
+  if (!(std::isfinite(dt) && dt > 0)) throw Error("track smoother: the time between frames must be > 0 s, got " + format_number(dt));
+  if (lag < 1) throw Error("track smoother: a velocity's lag must be at least 1 frame, got " + std::to_string(lag));
+  if (noise.position == 0) return {};
+  using M = Eigen::Matrix2d;
+  const double r2 = noise.position * noise.position, q = std::max(noise.acceleration, kMinAcceleration);
+  M F, Q;
+  F << 1, dt, 0, 1;
+  Q << q * dt * dt * dt / 3, q * dt * dt / 2, q * dt * dt / 2, q * dt;
+  // The filter's steady state: P (after an update) and Pp (predicted), iterated from the state
+  // after a first position (the Riccati recursion converges geometrically).
+  M P;
+  P << r2, 0, 0, kVelocityPrior * kVelocityPrior;
+  M Pp = F * P * F.transpose() + Q;
+  for (int k = 0; k < 1000000; ++k) {
+    Pp = F * P * F.transpose() + Q;
+    const Eigen::Vector2d K = Pp.col(0) / (Pp(0, 0) + r2);
+    const M next = Pp - K * Pp.row(0);
+    const bool still = (next - P).cwiseAbs().maxCoeff() <= 1e-15 * P.cwiseAbs().maxCoeff();
+    P = next;
+    if (still && k > 10) break;
+  }
+  Pp = F * P * F.transpose() + Q;
+  // The smoother's steady state: Ps = P + G (Ps - Pp) G^T, G = P F^T Pp^-1.
+  const M G = P * F.transpose() * Pp.inverse();
+  M Ps = P;
+  for (int k = 0; k < 1000000; ++k) {
+    const M next = P + G * (Ps - Pp) * G.transpose();
+    const bool still = (next - Ps).cwiseAbs().maxCoeff() <= 1e-15 * Ps.cwiseAbs().maxCoeff();
+    Ps = next;
+    if (still && k > 10) break;
+  }
+  M Gm = M::Identity();
+  for (long k = 0; k < lag; ++k) Gm = Gm * G;
+  const double var = Ps(0, 0), cov = (Gm * Ps)(0, 0), span = static_cast<double>(lag) * dt;
+  return {std::sqrt(var), std::sqrt(std::max(0.0, 2 * (var - cov))) / span};
+}
+
+TrajectorySet smoothed_tracks(const TrajectorySet& t, const TrackNoise& noise) {
+  check_levels(noise);
   TrajectorySet out = t;
   if (noise.position == 0 || !(t.framerate > 0)) return out;
-  const double r2 = noise.position * noise.position, q = std::max(noise.acceleration, 1e-9);
+  const double r2 = noise.position * noise.position, q = std::max(noise.acceleration, kMinAcceleration);
   for (const auto& idx : t.tracks()) {
     const size_t n = idx.size();
     if (n < 2) continue;

@@ -33,6 +33,19 @@ TrackNoise estimate_track_noise(const TrajectorySet& t);
 // that is negative or not finite is an Error naming it.
 TrajectorySet smoothed_tracks(const TrajectorySet& t, const TrackNoise& noise);
 
+// The error the smoother leaves on a long track sampled every dt s under these noise levels,
+// each axis, in its steady state (away from a track's ends): the sd of a smoothed position, and
+// the sd of a velocity taken as the difference of two smoothed positions `lag` frames apart over
+// their time. The errors of nearby smoothed positions are correlated (the smoother's lag
+// covariance: cov(e_k, e_k+m) = G^m P, G its backward gain, P its error covariance), so such a
+// velocity errs far less than two independent position errors would make it. position 0 gives
+// zeros; a level that is negative or not finite, dt <= 0 or lag < 1 is an Error naming it.
+struct SmoothedError {
+  double position = 0;  // m
+  double velocity = 0;  // m/s
+};
+SmoothedError smoothed_error(const TrackNoise& noise, double dt, long lag);
+
 // The recording smoothed in place under the noise levels it shows (estimate_track_noise, then
 // smoothed_tracks), which are returned; with position 0 (too few frames, or clean) it is left as it is.
 TrackNoise smooth_under_own_noise(TrajectorySet& t);
