@@ -14,6 +14,8 @@
 
 #include "engine/diagnosis/diagnose.hpp"
 #include "engine/diagnosis/synthetic.hpp"
+#include "engine/observe/observe.hpp"
+#include "engine/observe/track_smoother.hpp"
 #include "engine/vision/flow_tracks.hpp"
 #include "engine/vision/synthetic.hpp"
 #include "support.hpp"
@@ -199,6 +201,15 @@ TEST_CASE("diagnosis of a recording with nothing concealed finds nothing", "[dia
   CHECK(sm.at("method") == "rts");
   CHECK(sm.at("position_noise_m").get<double>() == Approx(0.03).margin(0.006));
   CHECK(sm.at("acceleration_noise_m2_s3").get<double>() > 0);
+  // The null adds the error the smoothed tracks carry: the smoother's steady state under those
+  // levels, less than the noise the tracks were read with.
+  const SmoothedError left = smoothed_error(job.track_noise, 1 / job.recording.framerate,
+                                            velocity_lag_frames(job.options.residual.velocity_window, job.recording.framerate));
+  std::printf("  control: the null's error %.4f m, %.4f m/s\n", r.null_error.position, r.null_error.velocity);
+  CHECK(rep.at("null_error").at("position_m").get<double>() == Approx(left.position));
+  CHECK(rep.at("null_error").at("velocity_m_s").get<double>() == Approx(left.velocity));
+  CHECK(left.position > 0.005);
+  CHECK(left.position < 0.7 * job.track_noise.position);
   // ... moved by about the noise, person by person and frame by frame as read; "none" keeps them as read.
   json as_read = request_for(c);
   as_read["options"]["smoother"] = "none";

@@ -843,7 +843,7 @@ DiagnosisResult run_diagnosis(const DiagnoseJob& job, const DiagnoseProgress& pr
   // The errors the null adds to the model's own motion (step 4): those the recording's tracks
   // carry, at least kMinNullNoise of white noise. Smoothed tracks carry the smoother's
   // steady-state error, correlated from frame to frame, so that a velocity over the window errs
-  // far less than two independent position errors would make it (the second differences of
+  // less than two independent position errors would make it (and the second differences of
   // smoothed tracks see next to none of it); raw tracks the white noise their second
   // differences show.
   const TrackError least = white_track_error(kMinNullNoise, d.residual.velocity_window, t.framerate);
