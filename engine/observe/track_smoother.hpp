@@ -38,7 +38,8 @@ TrajectorySet smoothed_tracks(const TrajectorySet& t, const TrackNoise& noise);
 // the sd of a velocity taken as the difference of two smoothed positions `lag` frames apart over
 // their time. The errors of nearby smoothed positions are correlated (the smoother's lag
 // covariance: cov(e_k, e_k+m) = G^m P, G its backward gain, P its error covariance), so such a
-// velocity errs far less than two independent position errors would make it. position 0 gives
+// velocity errs less than two independent position errors would make it (at 0.05 m and
+// 0.1 m^2/s^3, 10 frames/s: 11 % less over 5 frames, 72 % less over one). position 0 gives
 // zeros; a level that is negative or not finite, dt <= 0 or lag < 1 is an Error naming it.
 struct SmoothedError {
   double position = 0;  // m
