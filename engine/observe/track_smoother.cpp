@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 
 #include <Eigen/Dense>
 
@@ -60,6 +61,21 @@ State updated(const State& s, double z, double r2) {
 
 // The state after a track's first position (seen with variance r2), velocity not yet known.
 State initial(double z, double r2) { return State{z, 0, r2, 0, kVelocityPrior * kVelocityPrior}; }
+
+// The smoother's backward gain C = P_k F^T (P'_k+1)^-1 from a filtered state f and the next
+// predicted state p, dt apart (F = [[1, dt], [0, 1]]): the correction of f's position and velocity
+// per unit of the next smoothed-minus-predicted position and velocity. Empty when p's covariance
+// has collapsed (a vanishing acceleration), where the filter's estimate stands.
+struct Gain {
+  double pp, pv, vp, vv;  // [[pp, pv], [vp, vv]]
+};
+std::optional<Gain> backward_gain(const State& f, const State& p, double dt) {
+  const double a = f.cpp + dt * f.cpv, b = f.cpv, c = f.cpv + dt * f.cvv, d = f.cvv;  // P_k F^T = [[a, b], [c, d]]
+  const double det = p.cpp * p.cvv - p.cpv * p.cpv;
+  if (!(det > 0)) return std::nullopt;
+  const double i00 = p.cvv / det, i01 = -p.cpv / det, i11 = p.cpp / det;
+  return Gain{a * i00 + b * i01, a * i01 + b * i11, c * i00 + d * i01, c * i01 + d * i11};
+}
 
 // Negative log likelihood per innovation (from each series' third position on, where the
 // velocity is known from the data), with outlying innovations capped at kGate.
@@ -151,27 +167,26 @@ SmoothedError smoothed_error(const TrackNoise& noise, double dt, long lag) {
   if (!(std::isfinite(dt) && dt > 0)) throw Error("track smoother: the time between frames must be > 0 s, got " + format_number(dt));
   if (lag < 1) throw Error("track smoother: a velocity's lag must be at least 1 frame, got " + std::to_string(lag));
   if (noise.position == 0) return {};
-  using M = Eigen::Matrix2d;
   const double r2 = noise.position * noise.position, q = std::max(noise.acceleration, kMinAcceleration);
-  M F, Q;
-  F << 1, dt, 0, 1;
-  Q << q * dt * dt * dt / 3, q * dt * dt / 2, q * dt * dt / 2, q * dt;
-  // The filter's steady state: P (after an update) and Pp (predicted), iterated from the state
-  // after a first position (the Riccati recursion converges geometrically).
-  M P;
-  P << r2, 0, 0, kVelocityPrior * kVelocityPrior;
-  M Pp = F * P * F.transpose() + Q;
+  // The filter's steady state, iterated from the state after a first position (the Riccati
+  // recursion converges geometrically): its covariance after an update and predicted.
+  State f = initial(0, r2);
   for (int k = 0; k < 1000000; ++k) {
-    Pp = F * P * F.transpose() + Q;
-    const Eigen::Vector2d K = Pp.col(0) / (Pp(0, 0) + r2);
-    const M next = Pp - K * Pp.row(0);
-    const bool still = (next - P).cwiseAbs().maxCoeff() <= 1e-15 * P.cwiseAbs().maxCoeff();
-    P = next;
+    const State next = updated(predicted(f, dt, q), 0, r2);
+    const double change = std::max({std::abs(next.cpp - f.cpp), std::abs(next.cpv - f.cpv), std::abs(next.cvv - f.cvv)});
+    const bool still = change <= 1e-15 * std::max({std::abs(f.cpp), std::abs(f.cpv), std::abs(f.cvv)});
+    f = next;
     if (still && k > 10) break;
   }
-  Pp = F * P * F.transpose() + Q;
-  // The smoother's steady state: Ps = P + G (Ps - Pp) G^T, G = P F^T Pp^-1.
-  const M G = P * F.transpose() * Pp.inverse();
+  const State p = predicted(f, dt, q);
+  const std::optional<Gain> c = backward_gain(f, p, dt);
+  if (!c) return {std::sqrt(f.cpp), 0};
+  // The smoother's steady state: Ps = P + G (Ps - Pp) G^T.
+  using M = Eigen::Matrix2d;
+  M P, Pp, G;
+  P << f.cpp, f.cpv, f.cpv, f.cvv;
+  Pp << p.cpp, p.cpv, p.cpv, p.cvv;
+  G << c->pp, c->pv, c->vp, c->vv;
   M Ps = P;
   for (int k = 0; k < 1000000; ++k) {
     const M next = P + G * (Ps - Pp) * G.transpose();
@@ -202,28 +217,23 @@ TrajectorySet smoothed_tracks(const TrajectorySet& t, const TrackNoise& noise) {
         pred[k] = predicted(filt[k - 1], track.dt[k], q);
         filt[k] = updated(pred[k], track.z[k], r2);
       }
-      // Backward: x_k += C (x_k+1 smoothed - x_k+1 predicted), C = P_k F^T (P'_k+1)^-1.
+      // Backward: x_k += C (x_k+1 smoothed - x_k+1 predicted), C the backward gain.
       State sm = filt[n - 1];
       std::vector<double> pos(n);
       pos[n - 1] = sm.p;
       for (size_t k = n - 1; k-- > 0;) {
         const State& f = filt[k];
         const State& p = pred[k + 1];
-        const double dt = track.dt[k + 1];
-        // P_k F^T, F = [[1, dt], [0, 1]].
-        const double a = f.cpp + dt * f.cpv, b = f.cpv, c = f.cpv + dt * f.cvv, d = f.cvv;  // [[a, b], [c, d]]
-        const double det = p.cpp * p.cvv - p.cpv * p.cpv;
-        if (!(det > 0)) {  // (a covariance collapsed under a vanishing acceleration: the filter's estimate stands)
+        const std::optional<Gain> c = backward_gain(f, p, track.dt[k + 1]);
+        if (!c) {
           sm = f;
           pos[k] = f.p;
           continue;
         }
-        const double i00 = p.cvv / det, i01 = -p.cpv / det, i11 = p.cpp / det;
-        const double c00 = a * i00 + b * i01, c01 = a * i01 + b * i11, c10 = c * i00 + d * i01, c11 = c * i01 + d * i11;
         const double dp = sm.p - p.p, dv = sm.v - p.v;
         State s;
-        s.p = f.p + c00 * dp + c01 * dv;
-        s.v = f.v + c10 * dp + c11 * dv;
+        s.p = f.p + c->pp * dp + c->pv * dv;
+        s.v = f.v + c->vp * dp + c->vv * dv;
         sm = s;  // (only the means are needed backward)
         pos[k] = sm.p;
       }
