@@ -360,32 +360,62 @@ TEST_CASE("density per walkable area: a corridor narrower than the kernel reads 
   const WalkableLattice wide = walkable_lattice(open, 0.25);
   const std::vector<Vec2> y = {Vec2(0.3, 0.1), Vec2(-1.2, 0.7)}, e = {Vec2(0.6, 0.8), Vec2(0, 0)};
   for (double s : walkable_share_ahead(wide, y, e, 2.0, 2.5)) CHECK(s == 1.0);
-  // The share's adjoint against central differences near a corner (positions and headings, a
-  // focus that is not whole), and at a point with no heading.
+  // The share's adjoint against central differences near a corner (positions and headings), at
+  // a point with no heading, for a focus that is not whole (pow) and whole ones (1 and 3: the
+  // weights written out for the loop). The share the adjoint's pass gives is the same number as
+  // walkable_share_ahead's.
   geo.solids.push_back(Shape::circle(Vec2(4, 1.2), 0.5));
   const WalkableLattice corner = walkable_lattice(geo, 0.25);
   const std::vector<Vec2> q = {Vec2(2.9, 0.9), Vec2(0.8, 2.0), Vec2(3.3, 1.9)};
   const std::vector<Vec2> eq = {Vec2(0.8, 0.6), Vec2(-0.6, 0.8), Vec2(0, 0)};
   const std::vector<double> weights = {1.0, -0.7, 0.4};
-  auto loss = [&](const std::vector<Vec2>& at, const std::vector<Vec2>& he) {
-    const std::vector<double> s = walkable_share_ahead(corner, at, he, 2.0, 2.5);
-    return weights[0] * s[0] + weights[1] * s[1] + weights[2] * s[2];
-  };
-  std::vector<Vec2> xb(q.size(), Vec2::Zero()), eb(q.size(), Vec2::Zero());
-  walkable_share_ahead_vjp(corner, q, eq, 2.0, 2.5, weights, xb, eb);
-  const double h = 1e-6;
-  for (size_t p = 0; p < q.size(); ++p)
-    for (int c = 0; c < 2; ++c) {
-      std::vector<Vec2> up = q, down = q;
-      up[p][c] += h;
-      down[p][c] -= h;
-      CHECK(xb[p][c] == Approx((loss(up, eq) - loss(down, eq)) / (2 * h)).margin(1e-6));
-      std::vector<Vec2> eu = eq, ed = eq;
-      eu[p][c] += h;
-      ed[p][c] -= h;
-      if (eq[p].squaredNorm() > 0) CHECK(eb[p][c] == Approx((loss(q, eu) - loss(q, ed)) / (2 * h)).margin(1e-6));
+  for (double focus : {2.5, 1.0, 3.0}) {
+    INFO("focus " << focus);
+    auto loss = [&](const std::vector<Vec2>& at, const std::vector<Vec2>& he) {
+      const std::vector<double> s = walkable_share_ahead(corner, at, he, 2.0, focus);
+      return weights[0] * s[0] + weights[1] * s[1] + weights[2] * s[2];
+    };
+    const std::vector<double> plain_share = walkable_share_ahead(corner, q, eq, 2.0, focus);
+    const std::vector<ShareAhead> with_derivatives = walkable_share_ahead_derivatives(corner, q, eq, 2.0, focus);
+    for (size_t p = 0; p < q.size(); ++p) {
+      CHECK(plain_share[p] < 1);
+      CHECK(with_derivatives[p].share == plain_share[p]);
+      // Against its definition summed another way: the kernel's weights of the lattice centres
+      // within 2 m as neighbours in local_density_ahead (every centre, then the walkable ones;
+      // each sum also holds the point itself, weight 1).
+      std::vector<Vec2> all = {q[p]}, walkable = {q[p]};
+      for (long j = -12; j < corner.ny + 12; ++j)
+        for (long i = -12; i < corner.nx + 12; ++i) {
+          const Vec2 y = corner.lo + corner.h * Vec2(static_cast<double>(i) + 0.5, static_cast<double>(j) + 0.5);
+          if ((y - q[p]).norm() >= 2.0) continue;
+          all.push_back(y);
+          if (i >= 0 && i < corner.nx && j >= 0 && j < corner.ny && corner.clearance[static_cast<size_t>(j * corner.nx + i)] > 0)
+            walkable.push_back(y);
+        }
+      const auto weight_sum = [&](const std::vector<Vec2>& at) {
+        std::vector<Vec2> heading_of(at.size(), Vec2::Zero());
+        heading_of[0] = eq[p];
+        return local_density_ahead(at, heading_of, 2.0, focus)[0] * M_PI * 4 / 2 - 1;
+      };
+      REQUIRE(walkable.size() < all.size());
+      CHECK(plain_share[p] == Approx(weight_sum(walkable) / weight_sum(all)).epsilon(1e-9));
     }
-  CHECK(xb[0].norm() > 0.01);  // near the post and the wall the share moves with the position
+    std::vector<Vec2> xb(q.size(), Vec2::Zero()), eb(q.size(), Vec2::Zero());
+    walkable_share_ahead_vjp(corner, q, eq, 2.0, focus, weights, xb, eb);
+    const double h = 1e-6;
+    for (size_t p = 0; p < q.size(); ++p)
+      for (int c = 0; c < 2; ++c) {
+        std::vector<Vec2> up = q, down = q;
+        up[p][c] += h;
+        down[p][c] -= h;
+        CHECK(xb[p][c] == Approx((loss(up, eq) - loss(down, eq)) / (2 * h)).margin(1e-6));
+        std::vector<Vec2> eu = eq, ed = eq;
+        eu[p][c] += h;
+        ed[p][c] -= h;
+        if (eq[p].squaredNorm() > 0) CHECK(eb[p][c] == Approx((loss(q, eu) - loss(q, ed)) / (2 * h)).margin(1e-6));
+      }
+    CHECK(xb[0].norm() > 0.01);  // near the post and the wall the share moves with the position
+  }
 }
 
 TEST_CASE("the density-speed law's floor: added to Weidmann's factor, or its smooth max with it, and the adjoint", "[units]") {

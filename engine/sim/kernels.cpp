@@ -158,16 +158,19 @@ void material_density_vjp(const StepInputs& in, const std::vector<Vec2>& x, cons
     return;
   }
   // rho / s' with s' = max(s, kMinWalkableShare): d = drho / s' - rho ds / s'^2 where s' = s.
+  // (The share and its derivatives in one pass, only where the density matters to the loss.)
   const std::vector<double> rho = local_density_ahead(x, heading, R, k, &v, P.density_opening_speed);
-  const std::vector<double> share = walkable_share_ahead(*in.walkable, x, heading, R, k);
+  std::vector<char> need(rho.size());
+  for (size_t p = 0; p < rho.size(); ++p) need[p] = density_bar[p] != 0;
+  const std::vector<ShareAhead> share = walkable_share_ahead_derivatives(*in.walkable, x, heading, R, k, need);
   std::vector<double> rho_bar(rho.size()), share_bar(rho.size(), 0.0);
   for (size_t p = 0; p < rho.size(); ++p) {
-    const double s = std::max(share[p], kMinWalkableShare);
+    const double s = std::max(share[p].share, kMinWalkableShare);
     rho_bar[p] = density_bar[p] / s;
-    if (share[p] > kMinWalkableShare) share_bar[p] = -density_bar[p] * rho[p] / (s * s);
+    if (share[p].share > kMinWalkableShare) share_bar[p] = -density_bar[p] * rho[p] / (s * s);
   }
   local_density_ahead_vjp(x, heading, R, k, rho_bar, x_bar, heading_bar, &v, P.density_opening_speed, &v_bar, opening_bar);
-  walkable_share_ahead_vjp(*in.walkable, x, heading, R, k, share_bar, x_bar, heading_bar);
+  walkable_share_ahead_vjp(share, share_bar, x_bar, heading_bar);
 }
 
 namespace {

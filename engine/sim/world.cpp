@@ -227,52 +227,127 @@ WalkableLattice walkable_lattice(const Geometry& geo, double h) {
 }
 
 namespace {
-// Calls visit(y, walkable) for every lattice centre y within R of x (the lattice extended beyond
-// its cells, where nothing is walkable); returns false without visiting when the whole disc is
-// walkable (the centre nearest x is clear by more than R plus a cell's diagonal).
-template <class Visit>
-bool for_each_centre_within(const WalkableLattice& walk, const Vec2& x, double R, Visit&& visit) {
+// Calls run(i, m, rx, r2, ry, row) over runs of up to kRun consecutive lattice centres of a row
+// (the lattice extended beyond its cells, where nothing is walkable) that hold every centre
+// within R of x, and a few just beyond (r2 >= R^2, for the caller to skip): centre i + t at
+// y = (x + rx[t], x + ry), r2[t] = |y - x|^2; row: the row's clearances, null outside the
+// lattice. Returns false without a run when the whole disc is walkable (the centre nearest x is
+// clear by more than R plus a cell's diagonal).
+constexpr long kRun = 32;
+template <class Run>
+bool for_each_run(const WalkableLattice& walk, const Vec2& x, double R, Run&& run) {
   const double h = walk.h;
   const Vec2 u = (x - walk.lo) / h;
   const long ci = static_cast<long>(std::floor(u.x())), cj = static_cast<long>(std::floor(u.y()));
   if (ci >= 0 && ci < walk.nx && cj >= 0 && cj < walk.ny && walk.clearance[static_cast<size_t>(cj * walk.nx + ci)] > R + 1.5 * h)
     return false;
-  const double r = R / h;
+  const double r = R / h, R2 = R * R;
   const long i0 = static_cast<long>(std::ceil(u.x() - r - 0.5)), i1 = static_cast<long>(std::floor(u.x() + r - 0.5));
   const long j0 = static_cast<long>(std::ceil(u.y() - r - 0.5)), j1 = static_cast<long>(std::floor(u.y() + r - 0.5));
-  for (long j = j0; j <= j1; ++j)
-    for (long i = i0; i <= i1; ++i) {
-      const Vec2 y = walk.lo + h * Vec2(static_cast<double>(i) + 0.5, static_cast<double>(j) + 0.5);
-      if ((y - x).squaredNorm() >= R * R) continue;
-      const bool in = i >= 0 && i < walk.nx && j >= 0 && j < walk.ny && walk.clearance[static_cast<size_t>(j * walk.nx + i)] > 0;
-      visit(y, in);
+  double rx[kRun], r2[kRun];
+  for (long j = j0; j <= j1; ++j) {
+    const double ry = (walk.lo.y() + h * (static_cast<double>(j) + 0.5)) - x.y();
+    if (ry * ry >= R2) continue;
+    // The row's half chord, in spacings, a centre either side to spare.
+    const double chord = std::sqrt(R2 - ry * ry) / h;
+    const long a = std::max(i0, static_cast<long>(std::ceil(u.x() - chord - 0.5)) - 1);
+    const long b = std::min(i1, static_cast<long>(std::floor(u.x() + chord - 0.5)) + 1);
+    const float* row = j >= 0 && j < walk.ny ? walk.clearance.data() + j * walk.nx : nullptr;
+    for (long first = a; first <= b; first += kRun) {
+      const long m = std::min(kRun, b - first + 1);
+      const double f = static_cast<double>(first);  // (whole numbers: f + t is exact)
+      for (long t = 0; t < m; ++t) {
+        rx[t] = (walk.lo.x() + h * ((f + static_cast<double>(static_cast<int>(t))) + 0.5)) - x.x();
+        r2[t] = rx[t] * rx[t] + ry * ry;
+      }
+      run(first, m, rx, r2, ry, row);
     }
+  }
   return true;
 }
-}  // namespace
 
-namespace {
 // The kernel's weights over the lattice centres within R of x: S0 over every centre, S1 over the
 // walkable ones, and with derivatives, their gradients along x and the heading e.
 struct ShareSums {
   double s0 = 0, s1 = 0;
   Vec2 dx0 = Vec2::Zero(), dx1 = Vec2::Zero(), de0 = Vec2::Zero(), de1 = Vec2::Zero();
 };
-// False (sums untouched) when the whole disc is walkable.
+// False (sums untouched) when the whole disc is walkable. A third of a diagnosis is spent here:
+// each run's weights (and derivatives) are ahead_weight's written out branch-free, so that the
+// compiler computes several at once, with the same operations in the same order (the same
+// numbers), then summed in the lattice's order; a focus that is not whole (pow) calls ahead_weight.
 bool share_sums(const WalkableLattice& walk, const Vec2& x, const Vec2& e, double R, double focus, double Nk, bool derivatives,
                 ShareSums& out) {
-  return for_each_centre_within(walk, x, R, [&](const Vec2& y, bool in) {
-    Vec2 dr = Vec2::Zero(), de = Vec2::Zero();
-    const double W = ahead_weight(y - x, e, R, focus, Nk, derivatives ? &dr : nullptr, derivatives ? &de : nullptr);
-    out.s0 += W;
-    out.dx0 -= dr;  // r = y - x
-    out.de0 += de;
-    if (!in) return;
-    out.s1 += W;
-    out.dx1 -= dr;
-    out.de1 += de;
+  const double R2 = R * R, N = e.squaredNorm() > 0 ? Nk : 1, ex = e.x(), ey = e.y(), m2 = -2 / (R * R);
+  const bool whole = focus == std::floor(focus) && focus >= 1 && focus <= 16;
+  const int k = whole ? static_cast<int>(focus) : 0;
+  double w[kRun], drx[kRun], dry[kRun], dex[kRun], dey[kRun];
+  return for_each_run(walk, x, R, [&](long first, long m, const double* rx, const double* r2, double ry, const float* row) {
+    if (!whole) {
+      for (long t = 0; t < m; ++t) {
+        if (r2[t] >= R2) continue;
+        Vec2 dr = Vec2::Zero(), de = Vec2::Zero();
+        w[t] = ahead_weight(Vec2(rx[t], ry), e, R, focus, Nk, derivatives ? &dr : nullptr, derivatives ? &de : nullptr);
+        drx[t] = dr.x(), dry[t] = dr.y(), dex[t] = de.x(), dey[t] = de.y();
+      }
+    } else if (!derivatives && k == 1) {  // (1 * b is b: focus_power(b, 1))
+      for (long t = 0; t < m; ++t) w[t] = (1 - r2[t] / R2) * (1 + (rx[t] * ex + ry * ey) / std::sqrt(r2[t])) / N;
+    } else if (!derivatives) {
+      for (long t = 0; t < m; ++t) {
+        const double b = 1 + (rx[t] * ex + ry * ey) / std::sqrt(r2[t]);
+        double g = 1;
+        for (int q = 0; q < k; ++q) g *= b;
+        w[t] = (1 - r2[t] / R2) * g / N;
+      }
+    } else {
+      // b^k and b^(k-1) for the weight and its derivative (k >= 1; for k = 1, b and 1, and the
+      // loop free of inner loops).
+      const auto derivatives_at = [&](long t, double g, double gk, double n, double a, double c) {
+        const double ad = a * (focus * gk);
+        w[t] = a * g / N;
+        drx[t] = ((g * m2) * rx[t] + ad * (ex - c * rx[t] / n) / n) / N;
+        dry[t] = ((g * m2) * ry + ad * (ey - c * ry / n) / n) / N;
+        dex[t] = ad * rx[t] / n / N;
+        dey[t] = ad * ry / n / N;
+      };
+      if (k == 1) {
+        for (long t = 0; t < m; ++t) {
+          const double n = std::sqrt(r2[t]), c = (rx[t] * ex + ry * ey) / n;
+          derivatives_at(t, 1 + c, 1, n, 1 - r2[t] / R2, c);
+        }
+      } else {
+        for (long t = 0; t < m; ++t) {
+          const double n = std::sqrt(r2[t]), c = (rx[t] * ex + ry * ey) / n, b = 1 + c;
+          double g = 1, gk = 1;
+          for (int q = 0; q < k; ++q) g *= b;
+          for (int q = 1; q < k; ++q) gk *= b;
+          derivatives_at(t, g, gk, n, 1 - r2[t] / R2, c);
+        }
+      }
+    }
+    for (long t = 0; t < m; ++t) {
+      if (r2[t] >= R2) continue;
+      double W = w[t];
+      if (!(r2[t] > 0)) {  // the centre at x itself: weight 1 - 0, no derivatives
+        W = 1 - r2[t] / R2;
+        drx[t] = dry[t] = dex[t] = dey[t] = 0;
+      }
+      const long i = first + t;
+      const bool in = row && i >= 0 && i < walk.nx && row[i] > 0;
+      out.s0 += W;
+      if (in) out.s1 += W;
+      if (!derivatives) continue;
+      const Vec2 dr(drx[t], dry[t]), de(dex[t], dey[t]);
+      out.dx0 -= dr;  // r = y - x
+      out.de0 += de;
+      if (!in) continue;
+      out.dx1 -= dr;
+      out.de1 += de;
+    }
   });
 }
+// The walkable share at x (heading e) from its sums: 1 where the disc is whole.
+double share_of(bool partial, const ShareSums& S) { return partial && S.s0 > 0 ? S.s1 / S.s0 : 1.0; }
 }  // namespace
 
 std::vector<double> walkable_share_ahead(const WalkableLattice& walk, const std::vector<Vec2>& x, const std::vector<Vec2>& heading,
@@ -282,7 +357,7 @@ std::vector<double> walkable_share_ahead(const WalkableLattice& walk, const std:
   const double Nk = focus_norm(focus);
   for (size_t p = 0; p < x.size(); ++p) {
     ShareSums S;
-    if (share_sums(walk, x[p], heading[p], R, focus, Nk, false, S) && S.s0 > 0) share[p] = S.s1 / S.s0;
+    share[p] = share_of(share_sums(walk, x[p], heading[p], R, focus, Nk, false, S), S);
   }
   return share;
 }
@@ -293,19 +368,42 @@ void per_walkable_area(const WalkableLattice& walk, const std::vector<Vec2>& x, 
   for (size_t p = 0; p < rho.size(); ++p) rho[p] /= std::max(share[p], kMinWalkableShare);
 }
 
+std::vector<ShareAhead> walkable_share_ahead_derivatives(const WalkableLattice& walk, const std::vector<Vec2>& x,
+                                                         const std::vector<Vec2>& heading, double R, double focus,
+                                                         const std::vector<char>& need) {
+  std::vector<ShareAhead> out(x.size());
+  if (walk.empty()) return out;
+  const double Nk = focus_norm(focus);
+  for (size_t p = 0; p < x.size(); ++p) {
+    if (!need.empty() && !need[p]) continue;
+    ShareSums S;
+    ShareAhead& d = out[p];
+    d.share = share_of(share_sums(walk, x[p], heading[p], R, focus, Nk, true, S), S);
+    if (!(S.s0 > 0)) continue;  // the whole disc walkable: no derivatives
+    // s = S1 / S0: ds = (dS1 - s dS0) / S0.
+    d.s0 = S.s0;
+    d.dx = S.dx1 - d.share * S.dx0;
+    d.de = S.de1 - d.share * S.de0;
+  }
+  return out;
+}
+
+void walkable_share_ahead_vjp(const std::vector<ShareAhead>& d, const std::vector<double>& share_bar, std::vector<Vec2>& x_bar,
+                              std::vector<Vec2>& heading_bar) {
+  for (size_t p = 0; p < d.size(); ++p) {
+    if (share_bar[p] == 0 || !(d[p].s0 > 0)) continue;
+    const double g = share_bar[p] / d[p].s0;
+    x_bar[p] += g * d[p].dx;
+    heading_bar[p] += g * d[p].de;
+  }
+}
+
 void walkable_share_ahead_vjp(const WalkableLattice& walk, const std::vector<Vec2>& x, const std::vector<Vec2>& heading,
                               double R, double focus, const std::vector<double>& share_bar, std::vector<Vec2>& x_bar,
                               std::vector<Vec2>& heading_bar) {
-  if (walk.empty()) return;
-  const double Nk = focus_norm(focus);
-  for (size_t p = 0; p < x.size(); ++p) {
-    ShareSums S;
-    if (share_bar[p] == 0 || !share_sums(walk, x[p], heading[p], R, focus, Nk, true, S) || !(S.s0 > 0)) continue;
-    // s = S1 / S0: ds = (dS1 - s dS0) / S0.
-    const double s = S.s1 / S.s0, g = share_bar[p] / S.s0;
-    x_bar[p] += g * (S.dx1 - s * S.dx0);
-    heading_bar[p] += g * (S.de1 - s * S.de0);
-  }
+  std::vector<char> need(x.size());
+  for (size_t p = 0; p < x.size(); ++p) need[p] = share_bar[p] != 0;
+  walkable_share_ahead_vjp(walkable_share_ahead_derivatives(walk, x, heading, R, focus, need), share_bar, x_bar, heading_bar);
 }
 
 void reference_volumes(World& w, size_t first, double rest_density) {

@@ -113,6 +113,20 @@ std::vector<double> walkable_share_ahead(const WalkableLattice& walk, const std:
 void walkable_share_ahead_vjp(const WalkableLattice& walk, const std::vector<Vec2>& x, const std::vector<Vec2>& heading,
                               double R, double focus, const std::vector<double>& share_bar, std::vector<Vec2>& x_bar,
                               std::vector<Vec2>& heading_bar);
+// The share with what its adjoint needs, at the points where need[p] (every point when need is
+// empty; elsewhere share 1 and no derivatives): ds = (dx . dx_p + de . dheading_p) / s0, with
+// s0 = 0 where the whole disc is walkable (no derivatives). One pass over the lattice gives both.
+struct ShareAhead {
+  double share = 1;
+  double s0 = 0;
+  Vec2 dx = Vec2::Zero(), de = Vec2::Zero();
+};
+std::vector<ShareAhead> walkable_share_ahead_derivatives(const WalkableLattice& walk, const std::vector<Vec2>& x,
+                                                         const std::vector<Vec2>& heading, double R, double focus,
+                                                         const std::vector<char>& need = {});
+// The adjoint from them: adds share_bar[p] ds_p to x_bar and heading_bar.
+void walkable_share_ahead_vjp(const std::vector<ShareAhead>& d, const std::vector<double>& share_bar, std::vector<Vec2>& x_bar,
+                              std::vector<Vec2>& heading_bar);
 // The least walkable share a density ahead is divided by (a person facing a wall reads at most
 // 1 / kMinWalkableShare times the people in the disc's walkable part).
 constexpr double kMinWalkableShare = 0.25;
