@@ -272,8 +272,8 @@ struct ShareSums {
   double s0 = 0, s1 = 0;
   Vec2 dx0 = Vec2::Zero(), dx1 = Vec2::Zero(), de0 = Vec2::Zero(), de1 = Vec2::Zero();
 };
-// False (sums untouched) when the whole disc is walkable. A third of a diagnosis is spent here:
-// each run's weights (and derivatives) are ahead_weight's written out branch-free, so that the
+// False (sums untouched) when the whole disc is walkable. Half of a diagnosis is spent here
+// (benchmarks/results/diagnosis_timing.md): each run's weights (and derivatives) are ahead_weight's written out branch-free, so that the
 // compiler computes several at once, with the same operations in the same order (the same
 // numbers), then summed in the lattice's order; a focus that is not whole (pow) calls ahead_weight.
 bool share_sums(const WalkableLattice& walk, const Vec2& x, const Vec2& e, double R, double focus, double Nk, bool derivatives,
